@@ -1,0 +1,58 @@
+# petsc_htp: two commands, `make demo` and `make test`; both set up on first use.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+PIP := $(VPY) -m pip
+STAMP := $(VENV)/.petsc_htp-setup
+PETSC_VERSION := 3.26.1
+TORCH_VERSION := 2.13.0
+SYS_PKGS := build-essential mpich libmpich-dev libopenblas-dev
+PETSC_CONFIGURE_OPTIONS ?= --with-fc=0 --with-x=0 --with-cuda=0 --with-debugging=0
+export PETSC_CONFIGURE_OPTIONS
+
+.PHONY: setup demo test bench-quick clean-venv system
+
+setup: $(STAMP)
+
+# System prerequisites: C compiler, MPICH, BLAS/LAPACK from Debian.
+system:
+	@missing=""; \
+	command -v cc >/dev/null || missing="$$missing build-essential"; \
+	command -v mpicc >/dev/null || missing="$$missing mpich libmpich-dev"; \
+	ldconfig -p | grep -q libopenblas || missing="$$missing libopenblas-dev"; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    echo "[setup] installing system packages:$$missing"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYS_PKGS); \
+	  else \
+	    echo "[setup] missing system packages. Run:"; \
+	    echo "    sudo apt-get install -y $(SYS_PKGS)"; \
+	    exit 1; \
+	  fi; \
+	fi
+
+$(STAMP): pyproject.toml | system
+	@test -x $(VPY) || $(PYTHON) -m venv $(VENV)
+	$(PIP) install -q --upgrade pip setuptools wheel numpy cython
+	@if [ -n "$$PETSC_DIR" ]; then \
+	  echo "[setup] using existing PETSc at PETSC_DIR=$$PETSC_DIR PETSC_ARCH=$$PETSC_ARCH"; \
+	else \
+	  echo "[setup] building PETSc $(PETSC_VERSION) from source (first time about 8 min)"; \
+	  $(PIP) install -q petsc==$(PETSC_VERSION); \
+	fi
+	$(PIP) install -q --no-build-isolation petsc4py==$(PETSC_VERSION)
+	$(PIP) install -q --no-binary mpi4py mpi4py
+	$(PIP) install -q torch==$(TORCH_VERSION)
+	$(PIP) install -q -e '.[petsc,dev]'
+	@touch $(STAMP)
+	@echo "[setup] done"
+
+demo: setup
+	$(VPY) examples/poisson_multiphase.py -n 4096 -compare -plot results/demo.png
+
+test: setup
+	$(VPY) -m pytest -q tests
+
+clean-venv:
+	rm -rf $(VENV)
