@@ -1,0 +1,16 @@
+"""``petsc-htp bench``: every method through PETSc on the same frames, one results folder.
+
+``python -m petsc_htp.bench --quick`` runs a CI-sized benchmark; ``-h`` lists
+the studies and flags. The modules: :mod:`.cli` (flags and orchestration),
+:mod:`.methods` (which options files), :mod:`.runner` (one solve through PETSc
+or pyamg), :mod:`.cases` (frames and stress cases), :mod:`.studies` (trained
+model studies), :mod:`.spectrum`, :mod:`.stats`, :mod:`.report`,
+:mod:`.charts`, :mod:`.readme` and :mod:`.store` (atomic result files).
+"""
+
+
+def main(argv=None) -> int:
+    """Run ``petsc-htp bench`` with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
+    from .cli import main as run
+
+    return run(argv)

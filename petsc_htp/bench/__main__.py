@@ -1,0 +1,6 @@
+"""``python -m petsc_htp.bench``."""
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,77 @@
+"""Checkpoints: weights + configuration + provenance + a format version, written atomically."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import torch
+
+from .model import HTPConfig, HTPNet
+
+FORMAT = "petsc_htp-checkpoint"
+VERSION = 1
+DEFAULT = Path(__file__).parent / "checkpoints" / "htp_default.pt"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint is missing, unreadable, corrupt, of an unknown version or mismatched."""
+
+
+def atomic_save(obj, path) -> Path:
+    """torch.save to a temporary file in the target folder, then rename."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    os.close(fd)
+    try:
+        torch.save(obj, tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def save(path, net: HTPNet, provenance: dict, extra: dict | None = None) -> Path:
+    """Write a checkpoint; ``extra`` (optimizer state, ...) is kept for resuming."""
+    obj = {"format": FORMAT, "version": VERSION, "config": net.cfg.to_dict(),
+           "state_dict": net.state_dict(), "provenance": dict(provenance)}
+    if extra:
+        obj["extra"] = extra
+    return atomic_save(obj, path)
+
+
+def read(path=None) -> dict:
+    """Read and validate a checkpoint file (the shipped one when ``path`` is None)."""
+    path = Path(path) if path else DEFAULT
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path} does not exist")
+    try:
+        obj = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types for a damaged file
+        raise CheckpointError(f"checkpoint {path} is corrupt or unreadable: {exc}") from exc
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise CheckpointError(f"{path} is not a petsc_htp checkpoint")
+    if obj.get("version") != VERSION:
+        raise CheckpointError(f"checkpoint {path} has format version {obj.get('version')!r}; "
+                              f"this petsc_htp reads version {VERSION}")
+    return obj
+
+
+def load(path=None, expect: HTPConfig | None = None) -> tuple[HTPNet, dict]:
+    """Return (network in eval mode, provenance); ``expect`` must equal the stored config if given."""
+    obj = read(path)
+    try:
+        cfg = HTPConfig(**obj["config"])
+    except TypeError as exc:
+        raise CheckpointError(f"checkpoint {path} has an unknown configuration: {exc}") from exc
+    if expect is not None and expect != cfg:
+        raise CheckpointError(f"checkpoint {path} configuration {cfg} does not match the requested {expect}")
+    net = HTPNet(cfg)
+    try:
+        net.load_state_dict(obj["state_dict"])
+    except RuntimeError as exc:
+        raise CheckpointError(f"checkpoint {path} weights do not match its configuration: {exc}") from exc
+    net.eval()
+    return net, obj.get("provenance", {})

@@ -1,0 +1,109 @@
+"""From a sparse operator to a ready-to-apply HTP preconditioner (no PETSc needed).
+
+    htp = HTP.load()                         # the shipped checkpoint
+    pre = htp.setup(A, coords=xy)            # ordering, partition, network, factors
+    y = pre.apply(r)                         # y = M r, float64 in and out
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import torch
+
+from . import checkpoint
+from .apply import HTPOperator
+from .features import build_input
+from .model import HTPNet
+from .ordering import choose_ordering
+
+
+def resolve_device(device: str = "auto") -> torch.device:
+    """'auto' -> cuda when available, else cpu; unknown names raise ValueError."""
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if device not in ("cpu", "cuda") and not device.startswith("cuda:"):
+        raise ValueError(f"unknown device {device!r}; use cpu, cuda or auto")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError(f"device {device!r} requested but CUDA is not available")
+    return torch.device(device)
+
+
+@dataclass
+class Setup:
+    """An HTP preconditioner bound to one operator."""
+
+    op: HTPOperator
+    perm: np.ndarray
+    ordering: str
+    setup_ms: float
+    shift: float
+
+    @property
+    def n(self) -> int:
+        """Problem size N."""
+        return self.op.part.n
+
+    def apply(self, r: np.ndarray) -> np.ndarray:
+        """Return M r in the caller's ordering (float64)."""
+        y = np.empty(self.n)
+        y[self.perm] = self.op.apply(np.asarray(r, dtype=np.float64)[self.perm])
+        return y
+
+    def factors_finite(self) -> bool:
+        """True when every packed factor is finite."""
+        return bool(torch.isfinite(self.op.packed).all())
+
+    def min_rayleigh(self, probes: int = 8, seed: int = 0) -> float:
+        """Smallest Rayleigh quotient r^T M r / r^T r over random probes (< 0 proves M indefinite)."""
+        rng = np.random.default_rng(seed)
+        vals = []
+        for _ in range(probes):
+            r = rng.standard_normal(self.n)
+            vals.append(float(r @ self.apply(r) / (r @ r)))
+        return min(vals)
+
+
+class HTP:
+    """A loaded HTP network ready to build preconditioners for any N."""
+
+    def __init__(self, net: HTPNet, provenance: dict | None = None, device="auto", threads: int | None = None):
+        self.device = resolve_device(device)
+        if threads:
+            torch.set_num_threads(int(threads))
+        self.net = net.to(self.device).eval()
+        self.provenance = provenance or {}
+
+    @classmethod
+    def load(cls, path=None, device="auto", threads=None) -> "HTP":
+        """Load a checkpoint (the shipped one when ``path`` is None)."""
+        net, prov = checkpoint.load(path)
+        return cls(net, prov, device, threads)
+
+    @torch.no_grad()
+    def setup(self, A, coords=None, density=None, ordering="auto", shift: float = 0.0) -> Setup:
+        """Order, partition, run the network and bind the factors to ``A``.
+
+        Parameters
+        ----------
+        A : scipy sparse (N, N)
+        coords, density : optional per-row geometry and density (caller's ordering)
+        ordering : auto, morton, rcm or natural
+        shift : extra diagonal term ``shift * D^-1`` added to M (SPD safety margin)
+        """
+        t0 = time.perf_counter()
+        A = sp.csr_matrix(A)
+        n = A.shape[0]
+        perm, name = choose_ordering(A, coords, ordering)
+        Ap = A[perm][:, perm]
+        part = self.net.cfg.partition(n)
+        inp = build_input(Ap, part, None if coords is None else np.asarray(coords)[perm],
+                          None if density is None else np.asarray(density)[perm]).to(self.device)
+        packed = self.net(inp, part)
+        if shift:
+            packed[-part.n_pad:] += shift * inp.inv_diag
+        if self.device.type == "cuda":
+            torch.cuda.synchronize()
+        return Setup(HTPOperator(packed, part), perm, name, 1e3 * (time.perf_counter() - t0), shift)

@@ -1,0 +1,97 @@
+"""Morton (Z-order) codes for 2-D points."""
+import numpy as np
+
+_MAX_BITS = 32
+_SPREAD_STEPS = (
+    (16, 0x0000FFFF0000FFFF),
+    (8, 0x00FF00FF00FF00FF),
+    (4, 0x0F0F0F0F0F0F0F0F),
+    (2, 0x3333333333333333),
+    (1, 0x5555555555555555),
+)
+
+
+def _as_index_array(values, name):
+    """Return ``values`` as a uint64 array of integers in ``[0, 2**32)``."""
+    arr = np.asarray(values)
+    if arr.dtype == bool or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"{name} must be an integer array, got dtype {arr.dtype}")
+    if arr.size and (arr.min() < 0 or arr.max() >= 2**_MAX_BITS):
+        raise ValueError(f"{name} must lie in [0, 2**{_MAX_BITS})")
+    return arr.astype(np.uint64)
+
+
+def _spread_bits(v):
+    """Move bit k of each uint64 entry of ``v`` to bit 2k."""
+    for shift, mask in _SPREAD_STEPS:
+        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+    return v
+
+
+def morton_code(ix, iy):
+    """Interleave the bits of two non-negative integer arrays.
+
+    Parameters
+    ----------
+    ix, iy : array_like of int
+        Non-negative integers below ``2**32``; broadcast against each other.
+
+    Returns
+    -------
+    numpy.ndarray of uint64
+        Codes with the bits of ``ix`` in the even and of ``iy`` in the odd bits.
+    """
+    x = _as_index_array(ix, "ix")
+    y = _as_index_array(iy, "iy")
+    return _spread_bits(x) | (_spread_bits(y) << np.uint64(1))
+
+
+def quantized_morton_codes(coords, bits=16):
+    """Morton codes of points quantised over their bounding box.
+
+    Parameters
+    ----------
+    coords : array_like, shape (N, 2)
+        Finite point coordinates.
+    bits : int
+        Quantisation bits per axis, in ``[1, 32]``.
+
+    Returns
+    -------
+    numpy.ndarray of uint64, shape (N,)
+        Codes of the points after mapping each axis onto ``[0, 2**bits)``.
+    """
+    pts = np.asarray(coords, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"coords must have shape (N, 2), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("coords must be finite")
+    if not 1 <= bits <= _MAX_BITS:
+        raise ValueError(f"bits must lie in [1, {_MAX_BITS}], got {bits}")
+    if pts.shape[0] == 0:
+        return np.zeros(0, dtype=np.uint64)
+    lo = pts.min(axis=0)
+    span = pts.max(axis=0) - lo
+    span[span == 0] = 1.0  # a flat axis quantises to 0
+    q = np.minimum(np.floor((pts - lo) * (2.0**bits / span)), 2**bits - 1)
+    q = q.astype(np.int64)
+    return morton_code(q[:, 0], q[:, 1])
+
+
+def morton_permutation(coords, bits=16):
+    """Stable ordering of 2-D points along the Morton curve.
+
+    Parameters
+    ----------
+    coords : array_like, shape (N, 2)
+        Finite point coordinates.
+    bits : int
+        Quantisation bits per axis (see :func:`quantized_morton_codes`).
+
+    Returns
+    -------
+    numpy.ndarray of int64, shape (N,)
+        Indices that sort the points by Morton code, ties kept in input order.
+    """
+    codes = quantized_morton_codes(coords, bits)
+    return np.argsort(codes, kind="stable").astype(np.int64)

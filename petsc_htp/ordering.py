@@ -1,0 +1,82 @@
+"""Row orderings for sparse operators: Morton, reverse Cuthill-McKee, natural."""
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from .morton import morton_permutation, quantized_morton_codes
+
+METHODS = ("auto", "morton", "rcm", "natural")
+
+
+def _check_square(A):
+    """Return ``A`` as CSR, or raise ValueError unless it is square sparse."""
+    if not sp.issparse(A) or A.ndim != 2 or A.shape[0] != A.shape[1]:
+        raise ValueError(f"A must be a square scipy sparse matrix, got {type(A).__name__} "
+                         f"of shape {getattr(A, 'shape', None)}")
+    return sp.csr_matrix(A)
+
+
+def _check_coords(coords, n):
+    """Return ``coords`` as a float (n, 2) array, or raise ValueError."""
+    pts = np.asarray(coords, dtype=np.float64)
+    if pts.shape != (n, 2):
+        raise ValueError(f"coords must have shape ({n}, 2), got {pts.shape}")
+    return pts
+
+
+def rcm_permutation(A):
+    """Reverse Cuthill-McKee ordering of a structurally symmetric matrix.
+
+    Returns
+    -------
+    numpy.ndarray of int64
+        ``p`` such that ``A[p][:, p]`` has reduced bandwidth.
+    """
+    A = _check_square(A)
+    return reverse_cuthill_mckee(A, symmetric_mode=True).astype(np.int64)
+
+
+def is_morton_sorted(coords):
+    """True when the points already come in Morton order.
+
+    The quantised Morton codes (see
+    :func:`petsc_htp.morton.quantized_morton_codes`) must be non-decreasing.
+    """
+    codes = quantized_morton_codes(coords)
+    return bool(np.all(codes[1:] >= codes[:-1]))
+
+
+def choose_ordering(A, coords=None, method="auto"):
+    """Pick a symmetric permutation for ``A``.
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix, shape (N, N)
+    coords : array_like, shape (N, 2), optional
+        Point coordinates of the rows.
+    method : {'auto', 'morton', 'rcm', 'natural'}
+        'auto' keeps rows already in Morton order ("morton (given)"), else
+        uses Morton order when ``coords`` are given and RCM otherwise.
+
+    Returns
+    -------
+    perm : numpy.ndarray of int64
+        ``p`` such that ``A[p][:, p]`` is the reordered matrix.
+    name : str
+        The ordering used.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown ordering method {method!r}; expected one of "
+                         f"{', '.join(METHODS)}")
+    A = _check_square(A)
+    n = A.shape[0]
+    pts = None if coords is None else _check_coords(coords, n)
+    if method == "natural":
+        return np.arange(n, dtype=np.int64), "natural"
+    if method == "rcm" or (method == "auto" and pts is None):
+        return rcm_permutation(A), "rcm"
+    if pts is None:
+        raise ValueError("ordering method 'morton' needs coordinates (coords=None given)")
+    if method == "auto" and is_morton_sorted(pts):
+        return np.arange(n, dtype=np.int64), "morton (given)"
+    return morton_permutation(pts), "morton"

@@ -1,0 +1,60 @@
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from petsc_htp.apply import Factors, assemble
+from petsc_htp.features import build_input
+from petsc_htp.model import HTPConfig, HTPNet
+from petsc_htp.scenes import make_frame
+
+
+def test_default_size_matches_paper():
+    net = HTPNet()
+    assert 2.4e6 < net.n_params() < 2.9e6   # about 2.6 M parameters
+
+
+@pytest.mark.parametrize("n", [100, 256, 300])
+def test_forward_shapes_and_symmetric_m(tiny_cfg, n):
+    torch.manual_seed(0)
+    frame = make_frame(n, seed=3)
+    net = HTPNet(tiny_cfg)
+    part = tiny_cfg.partition(n)
+    packed = net(build_input(frame.A, part, frame.coords, frame.rho), part)
+    assert packed.shape == (part.packed_width,) and torch.isfinite(packed).all()
+    M = assemble(Factors.unpack(packed.double(), part), part)
+    np.testing.assert_allclose(M, M.T, atol=1e-6 * np.abs(M).max())
+
+
+def test_parameter_count_independent_of_n(tiny_cfg):
+    net = HTPNet(tiny_cfg)
+    before = net.n_params()
+    for n in (64, 1000):
+        part = tiny_cfg.partition(n)
+        frame = make_frame(n)
+        net(build_input(frame.A, part), part)
+    assert net.n_params() == before
+
+
+def test_units_do_not_change_the_preconditioner(tiny_cfg):
+    frame = make_frame(200, seed=1)
+    net = HTPNet(tiny_cfg).eval()
+    part = tiny_cfg.partition(200)
+    with torch.no_grad():
+        a = net(build_input(frame.A, part, frame.coords, frame.rho), part)
+        b = net(build_input(1e3 * frame.A, part, frame.coords, frame.rho), part)
+    fa, fb = Factors.unpack(a.double(), part), Factors.unpack(b.double(), part)
+    np.testing.assert_allclose(1e3 * assemble(fb, part), assemble(fa, part), rtol=1e-3, atol=1e-6)
+
+
+def test_invalid_config():
+    with pytest.raises(ValueError, match="p_off"):
+        HTPConfig(leaf=100, p_off=3).validate()
+    with pytest.raises(ValueError, match="heads"):
+        HTPConfig(d=30, heads=8).validate()
+    net = HTPNet(dataclasses.replace(HTPConfig(d=32, heads=4, n_layers=1), leaf=32))
+    with pytest.raises(ValueError, match="does not match"):
+        frame = make_frame(256)
+        part = HTPConfig().partition(256)
+        net(build_input(frame.A, part), part)

@@ -1,0 +1,98 @@
+"""Every options file in options/ runs through the example and converges."""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("petsc4py")
+
+from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"
+METHODS = sorted(p.stem for p in (ROOT / "options").glob("*.opts") if p.name != "common.opts")
+
+
+@pytest.fixture(scope="session")
+def tiny_ckpt(tmp_path_factory):
+    import torch
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
+    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
+    return path
+
+
+def run_example(*args, timeout=300):
+    out = subprocess.run([sys.executable, str(EXAMPLE), *map(str, args)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=timeout)
+    return out.returncode, out.stdout + out.stderr
+
+
+def field(text, name):
+    m = re.search(rf"^{re.escape(name)}: (.*)$", text, re.M)
+    assert m, f"no '{name}:' line in\n{text}"
+    return m.group(1).strip()
+
+
+def test_expected_method_files_exist():
+    assert set(METHODS) >= {"cg_none", "cg_jacobi", "cg_icc", "cg_gamg", "cg_bjacobi",
+                            "cg_htp", "gmres_htp", "bjacobi_htp"}
+    for stem in METHODS:
+        text = (ROOT / "options" / f"{stem}.opts").read_text()
+        assert text.startswith("#"), f"{stem}.opts has no header comment"
+        assert "-options_file options/common.opts" in text
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_method_file_converges(method, tiny_ckpt):
+    code, out = run_example("-options_file", f"options/{method}.opts", "-n", 1024, "-seed", 7,
+                            "-htp_checkpoint", tiny_ckpt)
+    assert code == 0, out
+    assert field(out, "method").startswith(method)
+    assert field(out, "converged reason").startswith("CONVERGED_"), out
+    assert float(field(out, "true relative residual ||b - A x|| / ||b||")) <= 1.01e-8
+    assert int(field(out, "iterations")) > 0
+    if method == "cg_bjacobi":
+        assert "pc bjacobi/cholesky" in out
+
+
+def test_petsc_itself_reads_the_nested_common_file():
+    """Plain PETSc (no example script) follows the -options_file line inside a method file."""
+    code = ("import sys, petsc4py; petsc4py.init(sys.argv); from petsc4py import PETSc; "
+            "o = PETSc.Options(); print(o.getString('ksp_type'), o.getString('pc_type'), "
+            "o.getReal('ksp_rtol'), o.getString('ksp_norm_type'))")
+    out = subprocess.run([sys.executable, "-c", code, "-options_file", "options/cg_jacobi.opts"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["cg", "jacobi", "1e-08", "unpreconditioned"]
+
+
+def test_compare_table_and_plot(tiny_ckpt, tmp_path):
+    png = tmp_path / "sub" / "demo.png"
+    code, out = run_example("-n", 1024, "-compare", "-plot", png, "-htp_checkpoint", tiny_ckpt)
+    assert code == 0, out
+    assert field(out, "method").startswith("cg_htp")
+    table = out[out.index("comparison on N=1024"):]
+    for method in METHODS:
+        row = re.search(rf"^{method} +(\S+) +(\S+) +(\d+) +(\S+)", table, re.M)
+        assert row, (method, table)
+        assert row.group(4).startswith("CONVERGED_"), row.group(0)
+    assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_help_lists_htp_options_with_defaults(tiny_ckpt):
+    code, out = run_example("-n", 256, "-help", "-htp_checkpoint", tiny_ckpt, "-htp_probe", 2)
+    assert code == 0, out
+    assert re.search(r"-htp_probe <int> <now 2 : formerly 4>: random Rayleigh", out), out[-3000:]
+    for name, default in (("checkpoint", str(checkpoint.DEFAULT)), ("device", "auto"), ("ordering", "auto"),
+                          ("shift", "0.0"), ("threads", "0"), ("fallback", "none")):
+        assert re.search(rf"-htp_{name} <\w+> <now .* : formerly {re.escape(default)}>: \S", out), (name, out[-3000:])
+
+
+def test_nonconvergence_exits_nonzero(tiny_ckpt):
+    code, out = run_example("-options_file", "options/cg_none.opts", "-n", 1024, "-ksp_max_it", 5)
+    assert code == 1
+    assert field(out, "converged reason") == "DIVERGED_ITS"

@@ -1,0 +1,404 @@
+"""HTPPC inside real PETSc KSPs (petsc4py, no mocks)."""
+import itertools
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+petsc4py = pytest.importorskip("petsc4py")
+from petsc4py import PETSc  # noqa: E402
+
+import petsc_htp  # noqa: E402
+from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
+from petsc_htp.scenes import TEST_SEED_OFFSET, make_frame  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"
+_PREFIXES = itertools.count()
+
+
+# ------------------------------------------------------------------ fixtures
+
+@pytest.fixture(scope="session")
+def tiny_ckpt(tmp_path_factory):
+    """A small untrained network (its M starts out close to Jacobi)."""
+    import torch
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
+    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
+    return path
+
+
+@pytest.fixture(scope="session")
+def nan_ckpt(tmp_path_factory):
+    """A checkpoint whose weights are all NaN."""
+    import torch
+    net = HTPNet(HTPConfig(d=32, n_layers=1, heads=4))
+    with torch.no_grad():
+        for p in net.parameters():
+            p.fill_(float("nan"))
+    path = tmp_path_factory.mktemp("ckpt") / "nan.pt"
+    checkpoint.save(path, net, {"note": "NaN weights"})
+    return path
+
+
+@pytest.fixture(scope="session")
+def indefinite_ckpt(tmp_path_factory):
+    """A checkpoint whose off-diagonal factors are huge: M is symmetric but indefinite."""
+    import torch
+    torch.manual_seed(1)
+    net = HTPNet(HTPConfig(d=32, n_layers=1, heads=4))
+    with torch.no_grad():
+        for head in (net.u_head, net.v_head, net.bridge_u, net.bridge_v):
+            head.weight.mul_(300.0)
+            head.bias.fill_(1.0)
+    path = tmp_path_factory.mktemp("ckpt") / "indefinite.pt"
+    checkpoint.save(path, net, {"note": "indefinite"})
+    return path
+
+
+@pytest.fixture(scope="module")
+def frame():
+    return make_frame(1024, seed=3)
+
+
+@pytest.fixture
+def options():
+    """Set options under a fresh prefix; remove them after the test."""
+    prefix = f"t{next(_PREFIXES)}_"
+    db = PETSc.Options()
+    names = []
+
+    def put(**kw):
+        for k, v in kw.items():
+            db.setValue(prefix + k, v)
+            names.append(prefix + k)
+        return prefix
+
+    yield put
+    for name in names:
+        db.delValue(name)
+
+
+def make_ksp(A, prefix):
+    ksp = PETSc.KSP().create(comm=A.getComm())
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A, A)
+    ksp.setFromOptions()
+    return ksp
+
+
+def htp_opts(ckpt, ksp="cg", **extra):
+    base = dict(ksp_type=ksp, ksp_rtol=1e-8, ksp_norm_type="unpreconditioned", ksp_max_it=5000,
+                pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt))
+    base.update(extra)
+    return base
+
+
+def solve(ksp, A, b_array):
+    b = A.createVecs("left")
+    b.setArray(b_array)
+    x = b.duplicate()
+    x.set(0.0)
+    ksp.solve(b, x)
+    r = b.duplicate()
+    A.mult(x, r)
+    r.aypx(-1.0, b)
+    return ksp.getConvergedReason(), ksp.getIterationNumber(), r.norm() / b.norm()
+
+
+def frame_mat(frame):
+    A = frame.petsc_mat(PETSc.COMM_SELF)
+    petsc_htp.attach(A, coords=frame.coords, density=frame.rho)
+    return A
+
+
+def error_text(excinfo):
+    """The exception and its whole cause/context chain as one string."""
+    out, exc = [], excinfo.value
+    while exc is not None:
+        out.append(f"{type(exc).__name__}: {exc}")
+        exc = exc.__cause__ or exc.__context__
+    return "\n".join(out)
+
+
+def reason_name(code):
+    return next(k for k, v in vars(PETSc.KSP.ConvergedReason).items() if k.isupper() and v == code)
+
+
+# ------------------------------------------------------------- convergence
+
+@pytest.mark.parametrize("ksp_type", ["cg", "gmres"])
+def test_converges_with_cg_and_gmres(frame, tiny_ckpt, options, ksp_type):
+    extra = {"ksp_pc_side": "right"} if ksp_type == "gmres" else {}
+    prefix = options(**htp_opts(tiny_ckpt, ksp_type, **extra))
+    A = frame_mat(frame)
+    ksp = make_ksp(A, prefix)
+    reason, its, relres = solve(ksp, A, frame.b)
+    assert reason > 0, reason_name(reason)
+    assert relres <= 1.01e-8
+    assert 1 < its < 5000
+    ctx = ksp.getPC().getPythonContext()
+    assert isinstance(ctx, petsc_htp.HTPPC)
+    assert ctx.setup.ordering == "morton (given)"
+
+
+@pytest.mark.skipif(not checkpoint.DEFAULT.exists(), reason="shipped checkpoint not trained yet")
+def test_shipped_checkpoint_beats_jacobi_on_held_out_frames(options):
+    for seed in (TEST_SEED_OFFSET, TEST_SEED_OFFSET + 1):
+        fr = make_frame(1024, seed=seed)
+        A = frame_mat(fr)
+        its = {}
+        for pc in ("jacobi", "htp"):
+            extra = ({"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"} if pc == "htp"
+                     else {"pc_type": "jacobi"})
+            prefix = options(ksp_type="cg", ksp_rtol=1e-8, ksp_norm_type="unpreconditioned",
+                             ksp_max_it=20000, **extra)
+            reason, its[pc], relres = solve(make_ksp(A, prefix), A, fr.b)
+            assert reason > 0 and relres <= 1.01e-8, (pc, reason_name(reason))
+        assert its["htp"] < its["jacobi"], (seed, its)
+
+
+def test_matrix_without_attachments_uses_rcm(tiny_ckpt, options):
+    side = 30                                    # N = 900: not a multiple of L = 128
+    path = sp.diags([-np.ones(side - 1), 2 * np.ones(side), -np.ones(side - 1)], [-1, 0, 1])
+    lap = (sp.kron(sp.identity(side), path) + sp.kron(path, sp.identity(side))).tocsr()
+    rng = np.random.default_rng(0)
+    shuffle = rng.permutation(side * side)       # scramble the natural order
+    lap = lap[shuffle][:, shuffle].tocsr()
+    A = PETSc.Mat().createAIJ(size=lap.shape, csr=(lap.indptr, lap.indices, lap.data), comm=PETSc.COMM_SELF)
+    A.assemble()
+    prefix = options(**htp_opts(tiny_ckpt))
+    ksp = make_ksp(A, prefix)
+    reason, its, relres = solve(ksp, A, rng.standard_normal(side * side))
+    assert reason > 0 and relres <= 1.01e-8
+    ctx = ksp.getPC().getPythonContext()
+    assert ctx.setup.ordering == "rcm"
+    assert "ordering: rcm" in view_text(ksp)
+
+
+def test_n_not_multiple_of_leaf(tiny_ckpt, options):
+    fr = make_frame(1000, seed=5)
+    A = frame_mat(fr)
+    ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))
+    reason, _, relres = solve(ksp, A, fr.b)
+    assert reason > 0 and relres <= 1.01e-8
+    part = ksp.getPC().getPythonContext().setup.op.part
+    assert (part.n, part.n_leaves, part.n_tiles) == (1000, 8, 7)
+
+
+# -------------------------------------------------------------------- view
+
+def view_text(ksp):
+    """``ksp.view()`` through a PETSc ASCII viewer on a file."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "view.txt")
+        vw = PETSc.Viewer().createASCII(path, comm=ksp.getComm())
+        ksp.view(vw)
+        vw.destroy()
+        return Path(path).read_text()
+
+
+def test_view_lines(frame, tiny_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))
+    solve(ksp, A, frame.b)
+    text = view_text(ksp)
+    for needle in ("Python: petsc_htp.HTPPC", "HTP (learned Hierarchical Transformer Preconditioner)",
+                   "model: d=32, n_l=1, L=128, L_s=32, heads=4, highways=yes;",
+                   f"checkpoint: {tiny_ckpt}", "N=1024, L=128, K=8 leaves, M_H=7 tiles",
+                   "factor memory", "ordering: morton (given); device: cpu", "last setup (inference):",
+                   "fallback: none (not needed; applying HTP)"):
+        assert needle in text, (needle, text)
+    n_params = HTPNet(HTPConfig(d=32, n_layers=1, heads=4)).n_params()
+    assert f"{n_params} parameters" in text
+
+
+def test_ksp_view_and_log_view_from_the_example(tiny_ckpt):
+    out = subprocess.run([sys.executable, str(EXAMPLE), "-n", "1024", "-htp_checkpoint", str(tiny_ckpt),
+                          "-ksp_view", "-log_view"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    text = out.stdout
+    assert "converged reason: CONVERGED_RTOL" in text
+    assert "type: python" in text and "HTP (learned Hierarchical Transformer Preconditioner)" in text
+    assert "model: d=32, n_l=1" in text and "M_H=7 tiles" in text
+    events = {line.split()[0]: line.split() for line in text.splitlines() if line.split()[:1] in (["HTPSetup"], ["HTPApply"])}
+    assert set(events) == {"HTPSetup", "HTPApply"}, text[-3000:]
+    assert int(events["HTPSetup"][1]) == 1            # count column
+    assert int(events["HTPApply"][1]) >= 2
+
+
+# ----------------------------------------------------------- setup caching
+
+def test_setup_reruns_only_when_the_operator_changes(frame, tiny_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))
+    reason, its1, _ = solve(ksp, A, frame.b)
+    pc = ksp.getPC()
+    ctx = pc.getPythonContext()
+    assert reason > 0 and ctx.setup_count == 1
+    solve(ksp, A, frame.b)                          # same operator: no new setup
+    pc.setUp()
+    ctx.setUp(pc)                                   # even calling the context directly
+    assert ctx.setup_count == 1
+    first = ctx.setup
+    A.scale(3.0)                                    # new values -> new object state
+    reason, its2, relres = solve(ksp, A, frame.b)
+    assert ctx.setup_count == 2 and ctx.setup is not first
+    assert reason > 0 and relres <= 1.01e-8
+    assert abs(its2 - its1) <= 2                    # the features are scale invariant
+    net = ctx.htp
+    A.shift(0.5)
+    solve(ksp, A, frame.b)
+    assert ctx.setup_count == 3 and ctx.htp is net  # the network is reused
+
+
+def test_attach_survives_new_wrappers(frame):
+    A = frame_mat(frame)
+    P = PETSc.KSP().create(comm=PETSc.COMM_SELF)
+    P.setOperators(A, A)
+    again = P.getOperators()[1]                     # a new Python wrapper of the same Mat
+    np.testing.assert_array_equal(again.getAttr("petsc_htp_coords"), frame.coords)
+    np.testing.assert_array_equal(again.getAttr("petsc_htp_density"), frame.rho)
+    with pytest.raises(ValueError, match="coords must have shape"):
+        petsc_htp.attach(A, coords=frame.coords[:, :1])
+
+
+# ------------------------------------------------------------------ guards
+
+def python_pc(A, ckpt, options, **extra):
+    prefix = options(pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt), **extra)
+    pc = PETSc.PC().create(comm=PETSc.COMM_SELF)
+    pc.setOptionsPrefix(prefix)
+    pc.setOperators(A, A)
+    pc.setFromOptions()
+    return pc
+
+
+def seqaij(csr, shape=None):
+    csr = sp.csr_matrix(csr, shape=shape)
+    A = PETSc.Mat().createAIJ(size=csr.shape, csr=(csr.indptr.astype(PETSc.IntType),
+                                                   csr.indices.astype(PETSc.IntType), csr.data),
+                              comm=PETSc.COMM_SELF)
+    A.assemble()
+    return A
+
+
+def test_guard_non_square(tiny_ckpt, options):
+    A = seqaij(sp.random(6, 8, density=0.5, random_state=0) + sp.eye(6, 8))
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(A, tiny_ckpt, options).setUp()
+    assert "non-square" in error_text(exc) and "6 x 8" in error_text(exc)
+
+
+def test_guard_nan(frame, tiny_ckpt, options):
+    bad = frame.A.copy()
+    bad.data[5] = np.nan
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(seqaij(bad), tiny_ckpt, options).setUp()
+    assert "NaN or Inf" in error_text(exc)
+
+
+@pytest.mark.parametrize("n", [0, 5])
+def test_guard_empty(tiny_ckpt, options, n):
+    A = PETSc.Mat().createAIJ(size=(n, n), nnz=1, comm=PETSc.COMM_SELF)
+    A.assemble()
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(A, tiny_ckpt, options).setUp()
+    assert "empty matrix" in error_text(exc)
+
+
+def test_guard_missing_checkpoint(frame, tmp_path, options):
+    missing = tmp_path / "nope.pt"
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(frame_mat(frame), missing, options).setUp()
+    text = error_text(exc)
+    assert "CheckpointError" in text and str(missing) in text and "does not exist" in text
+
+
+def test_guard_corrupt_checkpoint(frame, tmp_path, options):
+    bad = tmp_path / "corrupt.pt"
+    bad.write_bytes(b"this is not a torch checkpoint" * 10)
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(frame_mat(frame), bad, options).setUp()
+    text = error_text(exc)
+    assert "CheckpointError" in text and str(bad) in text and "corrupt" in text
+
+
+def test_guard_bad_option(frame, tiny_ckpt, options):
+    with pytest.raises(PETSc.Error) as exc:
+        python_pc(frame_mat(frame), tiny_ckpt, options, htp_fallback="maybe").setUp()
+    assert "fallback 'maybe' unknown" in error_text(exc)
+
+
+def test_guard_size_mismatch(frame, tiny_ckpt, options):
+    A = frame_mat(frame)
+    pc = python_pc(A, tiny_ckpt, options)
+    pc.setUp()
+    x = PETSc.Vec().createSeq(frame.n - 1, comm=PETSc.COMM_SELF)
+    y = x.duplicate()
+    with pytest.raises(ValueError, match="size mismatch"):
+        pc.getPythonContext().apply(pc, x, y)
+
+
+def test_apply_matches_setup_and_is_symmetric(frame, tiny_ckpt, options):
+    A = frame_mat(frame)
+    pc = python_pc(A, tiny_ckpt, options)
+    pc.setUp()
+    ctx = pc.getPythonContext()
+    rng = np.random.default_rng(0)
+    u, v = (A.createVecs("left") for _ in range(2))
+    u.setArray(rng.standard_normal(frame.n))
+    v.setArray(rng.standard_normal(frame.n))
+    mu, mv = u.duplicate(), v.duplicate()
+    pc.apply(u, mu)
+    pc.applyTranspose(v, mv)
+    np.testing.assert_allclose(mu.getArray(), ctx.setup.apply(u.getArray()), rtol=1e-12)
+    assert mu.norm() > 0
+    assert abs(v.dot(mu) - u.dot(mv)) <= 1e-4 * abs(v.dot(mu)) + 1e-8
+
+
+# ---------------------------------------------------------------- fallback
+
+def test_nan_weights_without_fallback_diverge(frame, nan_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(nan_ckpt)))
+    reason, _, _ = solve(ksp, A, frame.b)
+    assert reason < 0, reason_name(reason)
+    assert reason_name(reason) in ("DIVERGED_NANORINF", "DIVERGED_INDEFINITE_PC")
+    ctx = ksp.getPC().getPythonContext()
+    assert not ctx.finite and not ctx.fallback_active
+    assert "WARNING: HTP factors are not finite" in view_text(ksp)
+
+
+def test_nan_weights_with_jacobi_fallback_converge(frame, nan_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(nan_ckpt, htp_fallback="jacobi")))
+    reason, its, relres = solve(ksp, A, frame.b)
+    assert reason > 0 and relres <= 1.01e-8
+    ctx = ksp.getPC().getPythonContext()
+    assert ctx.fallback_active
+    assert "fallback: jacobi ACTIVE (HTP factors are not finite" in view_text(ksp)
+    # the same iterations as PETSc's own Jacobi
+    prefix = options(ksp_type="cg", ksp_rtol=1e-8, ksp_norm_type="unpreconditioned", ksp_max_it=5000,
+                     pc_type="jacobi")
+    _, its_jacobi, _ = solve(make_ksp(A, prefix), A, frame.b)
+    assert abs(its - its_jacobi) <= 1
+
+
+def test_indefinite_m_is_reported_and_fallback_recovers(frame, indefinite_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt)))
+    reason, _, _ = solve(ksp, A, frame.b)
+    ctx = ksp.getPC().getPythonContext()
+    assert ctx.finite and ctx.probe_min < 0
+    assert reason_name(reason) == "DIVERGED_INDEFINITE_PC"
+    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt, htp_fallback="jacobi")))
+    reason, _, relres = solve(ksp, A, frame.b)
+    assert reason > 0 and relres <= 1.01e-8
+    assert "fallback: jacobi ACTIVE (Rayleigh probe found M indefinite" in view_text(ksp)
