@@ -54,5 +54,8 @@ demo: setup
 test: setup
 	$(VPY) -m pytest -q tests
 
+bench-quick: setup
+	$(VPY) -m petsc_htp.bench --quick
+
 clean-venv:
 	rm -rf $(VENV)

@@ -22,8 +22,9 @@ PETSc (``-ksp_view``, ``-log_view``, ``-htp_checkpoint ...``).
 that the ``-options_file options/common.opts`` line inside every method file
 resolves from any working directory (first against the current directory,
 then against the repository root). Options given on the command line win over
-the files. ``-htp_*`` options are also copied to ``-sub_htp_*`` (unless set),
-so ``-htp_checkpoint`` reaches HTP inside block Jacobi too. A file that sets
+the files. When the method runs HTP inside block Jacobi (``-sub_pc_python_type``
+set), ``-htp_*`` options are copied to ``-sub_htp_*`` (unless set), so
+``-htp_checkpoint`` reaches the per-block HTP too. A file that sets
 ``-htp_bjacobi_leaf L`` gets ``-pc_bjacobi_blocks ceil(N/L)``.
 
 With ``-compare`` each file is loaded under its own options prefix (its file
@@ -32,7 +33,6 @@ name plus ``_``) into a fresh KSP, so the methods cannot leak into each other;
 to every method. The exit status is non-zero when the main method did not
 converge (after printing PETSc's reason).
 """
-import math
 import shlex
 import sys
 import time
@@ -64,7 +64,6 @@ import petsc4py  # noqa: E402
 petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-import numpy as np  # noqa: E402
 
 import petsc_htp  # noqa: E402
 from petsc_htp.scenes import make_frame, plot_frame  # noqa: E402
@@ -129,8 +128,10 @@ def insert_options(pairs, prefix="", override=True):
 
 
 def method_options(prefix=""):
-    """Copy -htp_* to -sub_htp_*, and turn -htp_bjacobi_leaf into -pc_bjacobi_blocks."""
+    """Copy -htp_* to -sub_htp_* (unless set) when HTP preconditions sub-blocks."""
     db = PETSc.Options()
+    if not db.hasName(prefix + "sub_pc_python_type"):
+        return
     for name, value in list(db.getAll().items()):
         if name.startswith(prefix + "htp_") and name != prefix + "htp_bjacobi_leaf":
             sub = prefix + "sub_" + name[len(prefix):]
@@ -194,7 +195,9 @@ def solve(A, b, n, prefix=""):
 
 
 def reason_name(code):
-    """KSP converged reason code -> its PETSc name (e.g. CONVERGED_RTOL)."""
+    """KSP converged reason code -> the name PETSc prints (e.g. CONVERGED_RTOL, DIVERGED_ITS)."""
+    if code == -3:          # petsc4py calls it DIVERGED_MAX_IT; -ksp_converged_reason says DIVERGED_ITS
+        return "DIVERGED_ITS"
     for name, value in vars(PETSc.KSP.ConvergedReason).items():
         if not name.startswith("_") and name.isupper() and value == code and name != "ITERATING":
             return name
@@ -218,10 +221,9 @@ def compare(A, b, n, cli):
         prefix = path.stem + "_"
         insert_options(read_options_file(path), prefix)
         for name, value in cli:
-            if name.startswith("htp_") and name != "htp_bjacobi_leaf":
-                insert_options([(name, value), ("sub_" + name, value)], prefix)
-            elif name in PROPAGATE:
+            if (name.startswith("htp_") and name != "htp_bjacobi_leaf") or name in PROPAGATE:
                 insert_options([(name, value)], prefix)
+        method_options(prefix)
         try:
             res, x = solve(A, b, n, prefix)
             x.destroy()

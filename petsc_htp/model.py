@@ -178,9 +178,7 @@ class HTPNet(nn.Module):
         self.slot = nn.Parameter(0.02 * torch.randn(L, d))        # within-leaf position of a token
         self.coarse_slot = nn.Parameter(0.02 * torch.randn(Ls, d))
         # Start near Jacobi + F F^T (PSD): B = U V^T is zero at first, yet U gets gradients through V.
-        import os
-        ws = float(os.environ.get("HTP_INIT", "0.3"))
-        for head, std in ((self.leaf_head[-1], ws), (self.bridge_u, ws), (self.bridge_v, ws), (self.v_head, ws),
+        for head, std in ((self.leaf_head[-1], 0.3), (self.bridge_u, 0.3), (self.bridge_v, 0.3), (self.v_head, 0.3),
                           (self.u_head, 0.0), (self.gate, 0.02)):
             nn.init.normal_(head.weight, std=std / head.in_features ** 0.5)
             nn.init.zeros_(head.bias)
@@ -216,11 +214,12 @@ class HTPNet(nn.Module):
                 xo = bo.feed(xo, ctx_o)
         zd = self.norm_d(xd) * dmask[..., None]
         zo = self.norm_o(xo)
-        s = inp.scale
-        F = self.leaf_head(zd) / s ** 0.5                                       # (K, L, L)
-        B = torch.bmm(self.u_head(zo), self.v_head(zo).transpose(1, 2)) / s     # (M, Ls, Ls)
-        U = self.bridge_u(zd)
-        V = self.bridge_v(zd)
+        # Rows are emitted for the unit-free D^-1/2 A D^-1/2 and scaled back: M = D^-1/2 M^ D^-1/2.
+        rs = inp.inv_diag.sqrt().view(K, L, 1)
+        F = self.leaf_head(zd) * rs                                             # (K, L, L)
+        B = torch.bmm(self.u_head(zo), self.v_head(zo).transpose(1, 2))         # (M, Ls, Ls)
+        U = self.bridge_u(zd) * rs
+        V = self.bridge_v(zd) * rs
         lam = Fn.softplus(self.gate(zd)).reshape(-1)
         if self.shift is not None:
             lam = lam + Fn.softplus(self.shift)

@@ -29,7 +29,8 @@ option                 default       meaning
 ``-htp_ordering``      auto          auto, morton, rcm, natural (auto: Morton with coordinates,
                                      RCM without, the given order when it already is Morton)
 ``-htp_shift``         0             add ``shift * D^-1`` to M (SPD safety margin)
-``-htp_threads``       0             torch CPU threads (0: leave torch's setting)
+``-htp_threads``       0             torch CPU threads (0: torch's default, or the cores
+                                     divided by the MPI ranks on the node)
 ``-htp_fallback``      none          none or jacobi: use ``D^-1`` when the factors are not
                                      finite or the Rayleigh probe proves M indefinite
 ``-htp_probe``         4             random Rayleigh-quotient probes of M at setup (0: none)
@@ -41,16 +42,16 @@ them. Geometry can be supplied with :func:`attach`; without it the features
 come from the matrix alone and the ordering is RCM.
 
 ``setUp`` runs the network only when the operator changed (PETSc object state
-and handle of the preconditioning matrix, the attached arrays and the options);
+and id of the preconditioning matrix, the attached arrays and the options);
 the loaded network is kept across setups and shared between contexts that
 use the same checkpoint file and device. ``PETSc.Log`` events ``HTPSetup``
 and ``HTPApply`` appear in ``-log_view``.
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
-import time
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +66,7 @@ __all__ = ["HTPPC", "attach", "OPTIONS"]
 
 COORDS_ATTR = "petsc_htp_coords"
 DENSITY_ATTR = "petsc_htp_density"
+VERSION_ATTR = "petsc_htp_attached"     # bumped by every attach(), part of the setup cache key
 FALLBACKS = ("none", "jacobi")
 
 # name, kind, default, one-line description (shown by -help)
@@ -73,12 +75,13 @@ OPTIONS = (
     ("device", "string", "auto", "torch device for the network and the apply: cpu, cuda[:k] or auto"),
     ("ordering", "string", "auto", "row ordering: auto (Morton with coordinates, else RCM), morton, rcm or natural"),
     ("shift", "real", 0.0, "add shift * D^-1 to M (SPD safety margin)"),
-    ("threads", "int", 0, "torch CPU threads (0: leave torch's default)"),
+    ("threads", "int", 0, "torch CPU threads (0: torch's default; cores / MPI ranks per node under MPI)"),
     ("fallback", "string", "none", "none or jacobi: apply D^-1 when the factors are non-finite or M is indefinite"),
     ("probe", "int", 4, "random Rayleigh-quotient probes of M at setup (0: skip the check)"),
 )
 
 _EVENTS = {}
+_ATTACHED = itertools.count(1)
 _NETS = {}          # (checkpoint path, mtime, size, device) -> HTP, shared between contexts
 
 
@@ -127,7 +130,9 @@ def attach(mat, coords=None, density=None):
     ``-sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC``. Sub-matrices
     that PETSc extracts itself (several blocks per rank) carry nothing, and HTP
     falls back to matrix-only features and RCM there. Passing ``None`` removes
-    a previously attached array. Returns ``mat``.
+    a previously attached array. The Mat's object state is increased, so a KSP
+    that was already set up runs HTP's setup again at its next solve. Call it
+    on every rank of a parallel matrix. Returns ``mat``.
     """
     local = {}
     for attr, values, what, width in ((COORDS_ATTR, coords, "coords", 2), (DENSITY_ATTR, density, "density", None)):
@@ -140,9 +145,12 @@ def attach(mat, coords=None, density=None):
             targets.append(mat.getDiagonalBlock())
         except PETSc.Error:
             pass
+    version = next(_ATTACHED)
     for target in targets:
         for attr, arr in local.items():
             target.setAttr(attr, arr)
+        target.setAttr(VERSION_ATTR, version)
+        target.stateIncrease()          # PETSc then sets up the preconditioner again
     return mat
 
 
@@ -185,6 +193,30 @@ def _read_csr(mat) -> sp.csr_matrix:
 
 def _checkpoint_path(text: str) -> Path:
     return Path(text).expanduser().resolve() if text else _checkpoint.DEFAULT
+
+
+def _auto_threads() -> int:
+    """Torch threads when -htp_threads is 0: split the cores between the MPI ranks on this node.
+
+    Returns 0 (leave torch alone) for a single rank or when OMP_NUM_THREADS is set.
+    Reads the launcher's environment (no collective call: setUp may run on one rank only).
+    """
+    if os.environ.get("OMP_NUM_THREADS"):
+        return 0
+    local = 0
+    for var in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE", "MV2_COMM_WORLD_LOCAL_SIZE"):
+        if os.environ.get(var, "").isdigit():
+            local = int(os.environ[var])
+            break
+    if not local:
+        local = PETSc.COMM_WORLD.getSize()
+    if local <= 1:
+        return 0
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count() or 1
+    return max(1, cores // local)
 
 
 def _load_network(path: Path, device: str, threads: int) -> HTP:
@@ -297,7 +329,7 @@ class HTPPC:
         P = pc.getOperators()[1]
         coords, density = _attached(P)
         ckpt = _checkpoint_path(opts["checkpoint"])
-        key = (P.handle, P.stateGet(), id(coords), id(density), str(ckpt),
+        key = (P.getId(), P.stateGet(), P.getAttr(VERSION_ATTR), str(ckpt),
                opts["device"], opts["ordering"], opts["shift"], opts["fallback"], opts["probe"])
         if key == self._key and self.setup is not None:
             return
@@ -305,7 +337,7 @@ class HTPPC:
         try:
             self._key = None
             A = _read_csr(P)
-            self.htp = _load_network(ckpt, opts["device"], opts["threads"])
+            self.htp = _load_network(ckpt, opts["device"], opts["threads"] or _auto_threads())
             self.checkpoint = ckpt
             setup = self.htp.setup(A, coords=coords, density=density,
                                    ordering=opts["ordering"], shift=opts["shift"])
@@ -337,10 +369,10 @@ class HTPPC:
         name = pc.getOptionsPrefix() or ""
         if self.fallback_active:
             PETSc.Sys.Print(f"HTPPC{' (' + name + ')' if name else ''}: {reason}; "
-                            "-htp_fallback jacobi: applying Jacobi (D^-1) instead", comm=pc.getComm())
+                            f"-{self._prefix(pc)}fallback jacobi: applying Jacobi (D^-1) instead", comm=pc.getComm())
         elif reason:
             PETSc.Sys.Print(f"HTPPC{' (' + name + ')' if name else ''}: WARNING: {reason}; "
-                            "Krylov methods will break down (use -htp_fallback jacobi)", comm=pc.getComm())
+                            f"Krylov methods will break down (use -{self._prefix(pc)}fallback jacobi)", comm=pc.getComm())
 
     # ------------------------------------------------------------ apply
     def apply(self, pc, x, y):
@@ -385,7 +417,9 @@ class HTPPC:
             part = self.setup.op.part
             out.append(f"  operator: N={part.n}, L={part.leaf}, K={part.n_leaves} leaves, "
                        f"M_H={part.n_tiles} tiles; factor memory {self.setup.op.nbytes / 2**20:.2f} MB")
-            out.append(f"  ordering: {self.setup.ordering}; device: {self.htp.device}; shift: {opts['shift']:g}")
+            import torch
+            out.append(f"  ordering: {self.setup.ordering}; device: {self.htp.device}; shift: {opts['shift']:g}; "
+                       f"torch threads: {torch.get_num_threads()}")
             out.append(f"  last setup (inference): {self.setup_ms:.1f} ms; setups: {self.setup_count}")
             probe = ("not run" if self.probe_min is None
                      else f"min r^T M r / r^T r = {self.probe_min:.3e} over {opts['probe']} vectors")

@@ -401,6 +401,9 @@ class Frame:
             nnz=(d_nnz, row_nnz - d_nnz),
             comm=comm,
         )
+        # Set on every rank: petsc4py preallocates ranks without rows differently,
+        # and a flag that differs across ranks deadlocks MPIAIJ assembly.
+        mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         mat.setValuesCSR(indptr, indices, local.data)
         mat.assemble()
         mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=comm))
@@ -599,9 +602,23 @@ def load_dataset(n, split="train", distribution="full", count=None, cache_dir=No
     frames = _read_cache(path, key)
     if frames is None:
         frames = [make_frame(n, seed=int(s), distribution=distribution) for s in seeds]
-        with _atomic_write(path) as handle:
-            np.savez(handle, **_frames_to_arrays(frames, key))
+        save_frames(frames, path, key)
     return frames
+
+
+def save_frames(frames, path, key="frames"):
+    """Write same-size frames to one .npz file atomically (readable by :func:`load_frames`)."""
+    with _atomic_write(path) as handle:
+        np.savez(handle, **_frames_to_arrays(frames, key))
+
+
+def load_frames(path):
+    """Frames saved by :func:`save_frames` (or a dataset cache file)."""
+    with np.load(path, allow_pickle=False) as stored:
+        if stored["version"].item() != GENERATOR_VERSION:
+            raise ValueError(f"{path} was written by scene generator {stored['version'].item()}, "
+                             f"this is {GENERATOR_VERSION}")
+        return _frames_from_arrays(stored)
 
 
 # ------------------------------------------------------------------- reports

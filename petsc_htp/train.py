@@ -37,6 +37,7 @@ class TrainSettings:
     frames: int = 100
     loss: str = "cosine"
     lr: float = 2e-4
+    warmup: int = 0
     weight_decay: float = 1e-4
     accum: int = 4
     max_steps: int = 100_000
@@ -47,6 +48,7 @@ class TrainSettings:
     geometry_free: float = 0.25
     seed: int = 0
     device: str = "cpu"
+    threads: int | None = None
     compile: bool = False
     out: str = "runs/htp"
     resume: bool = False
@@ -136,6 +138,8 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
     """Run training; returns the path of the final checkpoint (``<out>/final.pt``)."""
     if s.loss not in ("cosine", "sai"):
         raise ValueError(f"unknown loss {s.loss!r}; use cosine or sai")
+    if s.threads:
+        torch.set_num_threads(s.threads)
     torch.manual_seed(s.seed)
     rng = random.Random(s.seed)
     out = Path(s.out)
@@ -172,7 +176,7 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
     def provenance():
         return {"distribution": s.distribution, "scales": list(s.scales), "frames": s.frames, "seed": s.seed,
                 "loss": s.loss, "steps": step, "wall_s": round(elapsed, 1), "device": str(dev),
-                "machine": platform.node(), "torch": torch.__version__,
+                "machine": platform.node(), "torch": str(torch.__version__),
                 "heldout_n": s.eval_n, "heldout": last, "heldout_untrained": untrained, "settings": asdict(s)}
 
     def save(path):
@@ -186,12 +190,15 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
     t0 = time.perf_counter() - elapsed
     net.train()
     while step < s.max_steps and elapsed < budget:
+        if step < s.warmup:
+            for group in opt.param_groups:
+                group["lr"] = s.lr * (step + 1) / s.warmup
         opt.zero_grad(set_to_none=True)
         total = 0.0
         for ctx in rng.sample(contexts, min(s.accum, len(contexts))):
             loss = context_loss(model, ctx, s.loss) / s.accum
             loss.backward()
-            total += float(loss)
+            total += loss.item()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
         opt.step()
         step += 1

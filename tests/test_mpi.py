@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("petsc4py")
-pytest.importorskip("mpi4py")
 
 from petsc_htp import checkpoint  # noqa: E402
 from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402

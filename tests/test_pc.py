@@ -95,7 +95,8 @@ def make_ksp(A, prefix):
 
 def htp_opts(ckpt, ksp="cg", **extra):
     base = dict(ksp_type=ksp, ksp_rtol=1e-8, ksp_norm_type="unpreconditioned", ksp_max_it=5000,
-                pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt))
+                pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt),
+                htp_threads=1)   # one torch thread: no spin-waiting on a small, busy machine
     base.update(extra)
     return base
 
@@ -155,7 +156,7 @@ def test_shipped_checkpoint_beats_jacobi_on_held_out_frames(options):
         A = frame_mat(fr)
         its = {}
         for pc in ("jacobi", "htp"):
-            extra = ({"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"} if pc == "htp"
+            extra = ({"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_threads": 1} if pc == "htp"
                      else {"pc_type": "jacobi"})
             prefix = options(ksp_type="cg", ksp_rtol=1e-8, ksp_norm_type="unpreconditioned",
                              ksp_max_it=20000, **extra)
@@ -221,7 +222,7 @@ def test_view_lines(frame, tiny_ckpt, options):
 
 def test_ksp_view_and_log_view_from_the_example(tiny_ckpt):
     out = subprocess.run([sys.executable, str(EXAMPLE), "-n", "1024", "-htp_checkpoint", str(tiny_ckpt),
-                          "-ksp_view", "-log_view"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+                          "-htp_threads", "1", "-ksp_view", "-log_view"], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     text = out.stdout
     assert "converged reason: CONVERGED_RTOL" in text
@@ -256,6 +257,9 @@ def test_setup_reruns_only_when_the_operator_changes(frame, tiny_ckpt, options):
     A.shift(0.5)
     solve(ksp, A, frame.b)
     assert ctx.setup_count == 3 and ctx.htp is net  # the network is reused
+    petsc_htp.attach(A)                             # geometry removed -> new setup, RCM ordering
+    reason, _, _ = solve(ksp, A, frame.b)
+    assert reason > 0 and ctx.setup_count == 4 and ctx.setup.ordering == "rcm"
 
 
 def test_attach_survives_new_wrappers(frame):
@@ -272,7 +276,8 @@ def test_attach_survives_new_wrappers(frame):
 # ------------------------------------------------------------------ guards
 
 def python_pc(A, ckpt, options, **extra):
-    prefix = options(pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt), **extra)
+    prefix = options(pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt),
+                     htp_threads=1, **extra)
     pc = PETSc.PC().create(comm=PETSc.COMM_SELF)
     pc.setOptionsPrefix(prefix)
     pc.setOperators(A, A)

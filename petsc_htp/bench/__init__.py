@@ -3,9 +3,10 @@
 ``python -m petsc_htp.bench --quick`` runs a CI-sized benchmark; ``-h`` lists
 the studies and flags. The modules: :mod:`.cli` (flags and orchestration),
 :mod:`.methods` (which options files), :mod:`.runner` (one solve through PETSc
-or pyamg), :mod:`.cases` (frames and stress cases), :mod:`.studies` (trained
-model studies), :mod:`.spectrum`, :mod:`.stats`, :mod:`.report`,
-:mod:`.charts`, :mod:`.readme` and :mod:`.store` (atomic result files).
+or pyamg), :mod:`.cases` (frames and stress cases), :mod:`.studies` (what each
+study measures), :mod:`.training` (the models studies train), :mod:`.spectrum`,
+:mod:`.stats`, :mod:`.tables`, :mod:`.report`, :mod:`.charts`, :mod:`.readme`
+and :mod:`.store` (atomic result files).
 """
 
 

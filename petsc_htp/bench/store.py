@@ -12,6 +12,9 @@ import numpy as np
 
 META = "meta.json"
 REPORT = "report.md"
+CHEAP = ("table", "curves", "scaling", "stability")
+TRAINED = ("generalization", "size", "profile")
+STUDIES = CHEAP + TRAINED + ("fastpath",)
 
 
 @contextlib.contextmanager

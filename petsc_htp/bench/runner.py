@@ -1,0 +1,348 @@
+"""One frame, one method: PETSc options files under a prefix, or pyamg's classical AMG with NumPy PCG.
+
+This module is the single place that loads a PETSc options file into a fresh
+KSP: :func:`read_options_file` follows ``-options_file`` includes (resolved
+against the current directory, the repository root, then the including
+file's folder), :class:`MethodOptions` puts a file's options under the
+method's own prefix for the duration of a run and removes them afterwards,
+and :func:`solve_petsc` times ``KSPSetUp`` (plus ``PCSetUpOnBlocks``) and
+``KSPSolve`` separately. Every solve returns one row (a dict); a method that
+raises, diverges or produces NaN gives a failure row instead of stopping the
+run.
+"""
+from __future__ import annotations
+
+import math
+import re
+import shlex
+import time
+from pathlib import Path
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..pc import attach
+from .methods import OPTIONS_DIR, ROOT
+
+# Options that only print (the bench records the reason itself).
+PRINT_ONLY = ("ksp_converged_reason",)
+# A converged solve whose true residual misses rtol by more than this factor is a failure.
+RESIDUAL_SLACK = 10.0
+PYAMG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_MAX_IT", "nan": "DIVERGED_NANORINF",
+                 "indefinite_pc": "DIVERGED_INDEFINITE_PC", "indefinite_mat": "DIVERGED_INDEFINITE_MAT"}
+
+
+# ------------------------------------------------------------------ options files
+
+def _resolve(path, base=None) -> Path:
+    """An options file: as given, against the cwd, the repository root, then ``base``."""
+    p = Path(path).expanduser()
+    candidates = [p] if p.is_absolute() else [Path.cwd() / p, ROOT / p] + ([base / p] if base else [])
+    for cand in candidates:
+        if cand.is_file():
+            return cand.resolve()
+    raise FileNotFoundError(f"options file {path} not found (looked in {Path.cwd()} and {ROOT})")
+
+
+def _is_number(text) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def read_options_file(path, _base=None, _seen=None) -> list:
+    """Parse a PETSc options file into ``[(name without '-', value or None)]``, following includes."""
+    path = _resolve(path, _base)
+    seen = set() if _seen is None else _seen
+    if path in seen:
+        raise ValueError(f"options file {path} includes itself")
+    seen.add(path)
+    tokens = []
+    for line in path.read_text().splitlines():
+        tokens += shlex.split(line, comments=True)
+    pairs, i = [], 0
+    while i < len(tokens):
+        key = tokens[i]
+        if not key.startswith("-") or _is_number(key):
+            raise ValueError(f"{path}: expected an option, got {key!r}")
+        value = None
+        if i + 1 < len(tokens) and (not tokens[i + 1].startswith("-") or _is_number(tokens[i + 1])):
+            value = tokens[i + 1]
+            i += 1
+        i += 1
+        if key == "-options_file":
+            pairs += read_options_file(value, path.parent, seen)
+        else:
+            pairs.append((key.lstrip("-"), value))
+    return pairs
+
+
+def common_setting(name, default):
+    """A value of ``options/common.opts`` (the shared tolerances), as a float."""
+    values = dict(read_options_file(OPTIONS_DIR / "common.opts"))
+    return float(values[name]) if values.get(name) is not None else default
+
+
+def htp_options(checkpoint=None, device=None, threads=0) -> list:
+    """``htp_*`` option pairs for every HTP preconditioner (also under ``sub_`` for block Jacobi)."""
+    pairs = [("htp_checkpoint", checkpoint and str(checkpoint)), ("htp_device", device),
+             ("htp_threads", str(threads) if threads else None)]
+    pairs = [(k, v) for k, v in pairs if v]
+    return pairs + [("sub_" + k, v) for k, v in pairs]
+
+
+class MethodOptions:
+    """An options file loaded under the method's prefix while the object is open.
+
+    Parameters
+    ----------
+    method : petsc_htp.bench.methods.Method
+    extra : list of (name, value)
+        Options set after the file (e.g. :func:`htp_options`), winning over it.
+    """
+
+    def __init__(self, method, extra=()):
+        self.prefix = method.prefix
+        self.pairs = [p for p in read_options_file(method.path) if p[0] not in PRINT_ONLY] + list(extra)
+        names = {name for name, _ in self.pairs}
+        self.leaf = dict(self.pairs).get("htp_bjacobi_leaf") if "pc_bjacobi_blocks" not in names else None
+
+    def __enter__(self):
+        db = PETSc.Options()
+        for name, value in self.pairs:
+            db.setValue(self.prefix + name, "" if value is None else value)
+        return self
+
+    def __exit__(self, *exc):
+        db = PETSc.Options()
+        for name in list(db.getAll()):
+            if name.startswith(self.prefix):
+                db.delValue(name)
+
+    def set_blocks(self, n):
+        """``-htp_bjacobi_leaf L`` in the file: use ``ceil(N/L)`` block-Jacobi blocks for this N."""
+        if self.leaf is not None:
+            PETSc.Options().setValue(self.prefix + "pc_bjacobi_blocks", -(-n // int(self.leaf)))
+
+
+# ------------------------------------------------------------------------- rows
+
+def reason_name(code) -> str:
+    """KSP converged-reason code -> PETSc name (e.g. CONVERGED_RTOL)."""
+    for name, value in vars(PETSc.KSP.ConvergedReason).items():
+        if name.isupper() and value == code and name != "ITERATING":
+            return name
+    return str(code)
+
+
+def residuals(A, b, x):
+    """``(||b - A x|| / ||b||, the same with the constant (null-space) component removed)``."""
+    r = b - A @ x
+    bp, rp = b - b.mean(), r - r.mean()
+    return float(np.linalg.norm(r) / np.linalg.norm(b)), float(np.linalg.norm(rp) / np.linalg.norm(bp))
+
+
+def failure_of(reason, relres, relres_proj, rtol):
+    """Failure code of a finished solve, or None when it converged to ``rtol``."""
+    if reason.startswith("DIVERGED") or reason == "EXCEPTION":
+        return reason
+    if not (math.isfinite(relres) and math.isfinite(relres_proj)):
+        return "NAN"
+    if relres_proj > RESIDUAL_SLACK * rtol:
+        return "RESIDUAL"
+    return None
+
+
+def base_row(method, problem) -> dict:
+    """The identifying fields of a row."""
+    return {"method": method.name, "n": problem.n, "seed": problem.seed, "case": problem.case,
+            "rtol": problem.rtol}
+
+
+def describe(exc) -> str:
+    """One line naming an exception: its root cause first, then where PETSc raised it."""
+    chain = []
+    while exc is not None:
+        lines = str(exc).splitlines() or [""]
+        where = re.search(r"\] (\w+)\(\)", str(exc))
+        chain.append(f"{type(exc).__name__}: {lines[0]}" + (f" in {where.group(1)}()" if where else ""))
+        exc = exc.__cause__
+    return " ← ".join(reversed(chain))[:300]
+
+
+def exception_row(method, problem, exc) -> dict:
+    """A failure row for a solve that raised."""
+    text = describe(exc)
+    return {**base_row(method, problem), "ok": False, "failure": "EXCEPTION", "reason": "EXCEPTION",
+            "error": text, "setup_ms": None, "solve_ms": None, "total_ms": None, "iterations": None,
+            "relres": None, "relres_proj": None}
+
+
+def _finish(row, A, b, x, rtol):
+    """Add residuals, totals and the failure verdict to ``row``."""
+    relres, relres_proj = residuals(A, b, x)
+    failure = failure_of(row["reason"], relres, relres_proj, rtol)
+    row.update(relres=relres, relres_proj=relres_proj, total_ms=row["setup_ms"] + row["solve_ms"],
+               ok=failure is None, failure=failure, rtol=rtol)
+    return row
+
+
+class Recorder:
+    """KSP monitor / apply hook recording (ms since :meth:`start`, iteration, ||r|| / ||b||)."""
+
+    def __init__(self, bnorm):
+        self.bnorm = bnorm
+        self.points = []
+        self.t0 = time.perf_counter()
+
+    def start(self):
+        """Reset the clock (call right before setup)."""
+        self.t0 = time.perf_counter()
+
+    def __call__(self, ksp, its, rnorm):
+        self.points.append([1e3 * (time.perf_counter() - self.t0), int(its), float(rnorm) / self.bnorm])
+
+
+# ------------------------------------------------------------------------ PETSc
+
+def _htp_inference_ms(ksp):
+    """Milliseconds of the HTP network setup(s) inside ``ksp``'s PC, or None without HTP."""
+    pc = ksp.getPC()
+    pcs = [k.getPC() for k in pc.getBJacobiSubKSP()] if pc.getType() == "bjacobi" else [pc]
+    times = [getattr(p.getPythonContext(), "setup_ms", None) for p in pcs if p.getType() == "python"]
+    times = [t for t in times if t is not None]
+    return float(sum(times)) if times else None
+
+
+def solve_petsc(method, opts, problem, monitor=False) -> dict:
+    """Solve ``problem`` with a fresh KSP under ``opts``' prefix; return its row.
+
+    Setup is ``KSPSetUp`` + ``KSPSetUpOnBlocks`` (inference, AMG setup or
+    factorisation); solve is ``KSPSolve``. With ``monitor`` the row gets
+    ``curve``: [ms since setup start, iteration, ||r|| / ||b||] per iteration.
+    """
+    frame = problem.frame
+    A = frame.petsc_mat(PETSc.COMM_SELF)
+    if problem.attach:
+        attach(A, coords=frame.coords, density=frame.rho)
+    b = frame.petsc_vec(A)
+    x = b.duplicate()
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    try:
+        opts.set_blocks(problem.n)
+        ksp.setOptionsPrefix(opts.prefix)
+        ksp.setOperators(A, A)
+        ksp.setFromOptions()
+        if problem.rtol:
+            ksp.setTolerances(rtol=problem.rtol)
+        rec = Recorder(b.norm())
+        if monitor:
+            ksp.setMonitor(rec)
+        x.set(0.0)
+        rec.start()
+        ksp.setUp()
+        ksp.setUpOnBlocks()
+        t1 = time.perf_counter()
+        ksp.solve(b, x)
+        t2 = time.perf_counter()
+        row = {**base_row(method, problem), "setup_ms": 1e3 * (t1 - rec.t0), "solve_ms": 1e3 * (t2 - t1),
+               "iterations": ksp.getIterationNumber(), "reason": reason_name(ksp.getConvergedReason()),
+               "ksp": ksp.getType(), "pc": ksp.getPC().getType(), "inference_ms": _htp_inference_ms(ksp)}
+        if monitor:
+            row["curve"] = rec.points
+        return _finish(row, frame.A, frame.b, x.getArray().copy(), ksp.getTolerances()[0])
+    finally:
+        for obj in (ksp, x, b, A):
+            obj.destroy()
+
+
+# ------------------------------------------------------------------------ pyamg
+
+class _Stamped:
+    """Wrap a preconditioner apply, recording the time of every call."""
+
+    def __init__(self, apply):
+        self.apply, self.times = apply, []
+
+    def __call__(self, r):
+        self.times.append(time.perf_counter())
+        return self.apply(r)
+
+
+def solve_pyamg(method, problem, monitor=False) -> dict:
+    """pyamg Ruge-Stuben AMG (V-cycle) preconditioning NumPy PCG, on the mean-projected rhs.
+
+    Same stopping rule as the options files (``rtol`` from ``common.opts`` on
+    the unpreconditioned residual, ``ksp_max_it`` iterations at most).
+    """
+    import pyamg
+
+    from ..pcg import pcg
+
+    frame = problem.frame
+    rtol = problem.rtol or common_setting("ksp_rtol", 1e-8)
+    maxit = int(common_setting("ksp_max_it", 10000))
+    t0 = time.perf_counter()
+    ml = pyamg.ruge_stuben_solver(frame.A)
+    apply = _Stamped(ml.aspreconditioner().matvec)
+    t1 = time.perf_counter()
+    res = pcg(frame.A, frame.b - frame.b.mean(), apply, rtol=rtol, maxiter=maxit)
+    t2 = time.perf_counter()
+    row = {**base_row(method, problem), "setup_ms": 1e3 * (t1 - t0), "solve_ms": 1e3 * (t2 - t1),
+           "iterations": res.iterations, "reason": PYAMG_REASONS[res.reason], "ksp": "numpy-cg",
+           "pc": f"pyamg-rs({len(ml.levels)} levels)", "inference_ms": None}
+    if monitor:
+        times = (apply.times + [t2] * len(res.history))[:len(res.history)]
+        bnorm = float(np.linalg.norm(frame.b))
+        row["curve"] = [[1e3 * (t - t0), k, float(h) / bnorm] for k, (t, h) in enumerate(zip(times, res.history))]
+    return _finish(row, frame.A, frame.b, res.x, rtol)
+
+
+# ----------------------------------------------------------------------- driver
+
+def _solve(method, opts, problem, monitor):
+    """One solve; any exception becomes a failure row."""
+    try:
+        if method.is_petsc:
+            return solve_petsc(method, opts, problem, monitor)
+        return solve_pyamg(method, problem, monitor)
+    except Exception as exc:  # a failing method is a result, never the end of the run
+        return exception_row(method, problem, exc)
+
+
+class _NoOptions:
+    """Stand-in for :class:`MethodOptions` of a method without an options file."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return None
+
+
+def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
+    """Solve every problem with one method; one row each.
+
+    The options stay loaded for the whole list; with ``warmup`` the first
+    problem of every N is solved once more beforehand and that solve is
+    discarded. ``tick()`` is called after every recorded solve.
+    """
+    try:
+        opts = MethodOptions(method, extra) if method.is_petsc else _NoOptions()
+    except Exception as exc:  # unreadable options file: every problem fails
+        rows = []
+        for problem in problems:
+            rows.append(exception_row(method, problem, exc))
+            tick()
+        return rows
+    rows, warmed = [], set()
+    with opts:
+        for problem in problems:
+            if warmup and problem.n not in warmed:
+                warmed.add(problem.n)
+                _solve(method, opts, problem, False)
+            rows.append(_solve(method, opts, problem, monitor))
+            tick()
+    return rows

@@ -1,0 +1,50 @@
+"""Eigenvalues of the preconditioned operator M A on one small frame (dense, N around 1024)."""
+from __future__ import annotations
+
+import numpy as np
+
+from .stats import condition_number
+
+
+def dense_operator(apply, n) -> np.ndarray:
+    """The n x n matrix of a linear map, column by column."""
+    eye = np.eye(n)
+    return np.column_stack([apply(eye[:, i]) for i in range(n)])
+
+
+def preconditioned_eigs(A, M=None):
+    """Eigenvalues of M A without the null-space one; and whether M A has non-positive eigenvalues.
+
+    With a symmetric positive-definite part ``(M + M^T)/2 = L L^T`` the
+    spectrum is that of the symmetric ``L^T A L``; otherwise the real parts
+    of the eigenvalues of ``M A``. The eigenvalue of smallest magnitude (the
+    constant null vector of the Neumann operator) is dropped.
+    """
+    A = np.asarray(A.toarray() if hasattr(A, "toarray") else A, dtype=float)
+    if M is None:
+        eigs = np.linalg.eigvalsh(A)
+    else:
+        try:
+            L = np.linalg.cholesky((M + M.T) / 2)
+            eigs = np.linalg.eigvalsh(L.T @ A @ L)
+        except np.linalg.LinAlgError:
+            eigs = np.sort(np.linalg.eigvals(M @ A).real)
+    eigs = np.delete(eigs, np.argmin(np.abs(eigs)))
+    return np.sort(eigs), bool(eigs.min() <= 0)
+
+
+def spectrum_row(name, frame, M=None) -> dict:
+    """One row: the spectrum of M A on ``frame`` with its condition number."""
+    eigs, indefinite = preconditioned_eigs(frame.A, M)
+    asym = 0.0 if M is None else float(np.linalg.norm(M - M.T) / np.linalg.norm(M))
+    return {"method": name, "n": frame.n, "seed": frame.params.get("seed"), "eigs": eigs.tolist(),
+            "kappa": condition_number(eigs), "indefinite": indefinite, "asymmetry": asym}
+
+
+def spectrum_rows(frame, htp=None) -> list:
+    """Spectra of A (no preconditioner), D^-1 A (Jacobi) and, with a loaded HTP, M A."""
+    rows = [spectrum_row("none", frame), spectrum_row("jacobi", frame, np.diag(1.0 / frame.A.diagonal()))]
+    if htp is not None:
+        setup = htp.setup(frame.A, coords=frame.coords, density=frame.rho)
+        rows.append(spectrum_row("htp", frame, dense_operator(setup.apply, frame.n)))
+    return rows

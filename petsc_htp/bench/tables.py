@@ -1,0 +1,61 @@
+"""Markdown tables and number formatting for the report."""
+from __future__ import annotations
+
+import math
+
+
+def missing(x) -> bool:
+    """True for None and non-finite numbers."""
+    return x is None or (isinstance(x, float) and not math.isfinite(x))
+
+
+def ms(x) -> str:
+    """Milliseconds with precision that suits their size."""
+    if missing(x):
+        return "—"
+    if x < 10:
+        return f"{x:.2f}"
+    if x < 1000:
+        return f"{x:.1f}"
+    return f"{x:,.0f}"
+
+
+def its(x) -> str:
+    """A (mean) iteration count, rounded."""
+    return "—" if missing(x) else f"{x:,.0f}"
+
+
+def pm(s, fmt) -> str:
+    """``mean ± std`` of a :func:`petsc_htp.bench.stats.summary`."""
+    return "—" if missing(s["mean"]) else f"{fmt(s['mean'])} ± {fmt(s['std'])}"
+
+
+def tol(x) -> str:
+    """A tolerance such as 1e-8."""
+    return f"{x:g}".replace("e-0", "e-")
+
+
+def sci(x) -> str:
+    """Scientific notation with two digits."""
+    return "—" if missing(x) else f"{x:.1e}"
+
+
+def ratio(x) -> str:
+    """A speed-up or reduction factor."""
+    if missing(x):
+        return "—"
+    return f"{x:.2f}×" if x >= 0.1 else f"{x:.2g}×"
+
+
+def md_table(header, rows, left=1) -> str:
+    """A GitHub-flavoured Markdown table; the first ``left`` columns left-aligned, the others right-aligned."""
+    def line(cells):
+        return "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"
+
+    rule = "|" + "|".join([":---"] * left + ["---:"] * (len(header) - left)) + "|"
+    return "\n".join([line(header), rule] + [line(row) for row in rows])
+
+
+def n_label(n) -> str:
+    """N with a thin thousands separator, as in the paper's tables."""
+    return f"{n:,}".replace(",", " ")

@@ -1,0 +1,302 @@
+"""petsc-htp bench: a quick end-to-end run through real PETSc, report regeneration, README, failures."""
+import json
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+pytest.importorskip("petsc4py")
+pytest.importorskip("pyamg")
+
+from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.bench import main, stats, store  # noqa: E402
+from petsc_htp.bench.cases import STRESS, natural_order  # noqa: E402
+from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E402
+from petsc_htp.bench.readme import END, START  # noqa: E402
+from petsc_htp.bench.runner import MethodOptions, read_options_file  # noqa: E402
+from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
+from petsc_htp.scenes import make_frame  # noqa: E402
+
+QUICK_PNGS = ("table4.png", "scaling.png", "curves_n256.png", "curves_n512.png", "curves_summary.png",
+              "stability.png")
+CLASSICAL = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "pyamg")
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    """A private frame cache and a tiny untrained checkpoint."""
+    import torch
+
+    base = tmp_path_factory.mktemp("bench")
+    old = os.environ.get("PETSC_HTP_CACHE")
+    os.environ["PETSC_HTP_CACHE"] = str(base / "cache")
+    torch.manual_seed(0)
+    ckpt = checkpoint.save(base / "tiny.pt", HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
+    yield {"base": base, "ckpt": str(ckpt), "common": ["--checkpoint", str(ckpt), "--threads", "1", "--no-progress"]}
+    if old is None:
+        os.environ.pop("PETSC_HTP_CACHE", None)
+    else:
+        os.environ["PETSC_HTP_CACHE"] = old
+
+
+@pytest.fixture(scope="module")
+def quick(env):
+    """One ``bench --quick`` run with the default methods and studies."""
+    out = env["base"] / "quick"
+    assert main(["--quick", "--out", str(out), *env["common"]]) == 0
+    return out
+
+
+def rows_of(out, study):
+    return store.read_jsonl(store.study_path(out, study))
+
+
+def by_method(rows):
+    return {m: [r for r in rows if r["method"] == m] for m in dict.fromkeys(r["method"] for r in rows)}
+
+
+# ------------------------------------------------------------------ quick run
+
+def test_quick_run_writes_every_artefact(quick):
+    for study in ("table", "curves", "stability"):
+        assert rows_of(quick, study), study
+    for name in QUICK_PNGS:
+        data = (quick / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 2000, name
+    report = (quick / "report.md").read_text()
+    for heading in ("## 1. Time per frame", "## 2. Speed against accuracy", "## 3. Time against N",
+                    "## 4. Stability map"):
+        assert heading in report
+    assert "## 5." not in report and "## 8." not in report
+    for name in QUICK_PNGS:
+        assert f"]({name})" in report
+    meta = json.loads((quick / "meta.json").read_text())
+    assert meta["quick"] and meta["methods"] == list(DEFAULT_METHODS)
+    assert meta["machine"]["cpu"] and meta["date"] and meta["versions"]["PETSc"].startswith("3.")
+    assert meta["threads"]["torch"] == 1
+    assert set(meta["study_s"]) == {"table", "curves", "scaling", "stability"}
+    assert not list(quick.glob(".*.tmp"))
+
+
+def test_quick_table_rows_measure_every_method(quick):
+    rows = rows_of(quick, "table")
+    methods = by_method(rows)
+    assert list(methods) == list(DEFAULT_METHODS)
+    for m, got in methods.items():
+        assert sorted((r["n"], r["seed"]) for r in got) == [(256, 1_000_000), (256, 1_000_001),
+                                                             (512, 1_000_000), (512, 1_000_001)], m
+    for m in CLASSICAL:
+        for r in methods[m]:
+            assert r["ok"] and r["reason"].startswith("CONVERGED"), r
+            assert r["relres_proj"] <= 1e-7 and r["setup_ms"] >= 0 and r["solve_ms"] > 0
+            assert r["total_ms"] == pytest.approx(r["setup_ms"] + r["solve_ms"])
+    its = {m: np.mean([r["iterations"] for r in methods[m] if r["n"] == 512]) for m in CLASSICAL}
+    assert its["pyamg"] < its["cg_icc"] < its["cg_jacobi"] <= its["cg_none"]
+    assert {r["pc"] for r in methods["cg_bjacobi"]} == {"bjacobi"}
+    for r in methods["cg_htp"]:
+        assert r["ok"] or r["failure"], r
+        if r["ok"]:
+            assert r["inference_ms"] > 0 and r["pc"] == "python"
+
+
+def test_table4_text_matches_rows(quick):
+    report = (quick / "report.md").read_text()
+    rows = [r for r in rows_of(quick, "table") if r["method"] == "cg_jacobi" and r["n"] == 512]
+    mean_ms = np.mean([r["total_ms"] for r in rows])
+    mean_its = np.mean([r["iterations"] for r in rows])
+    line = next(li for li in report.splitlines() if li.startswith("| cg_jacobi |"))
+    assert f"{mean_ms:.2f} ({mean_its:,.0f})" in line or f"{mean_ms:.1f} ({mean_its:,.0f})" in line
+
+
+def test_curves_reach_the_tolerance(quick):
+    for r in rows_of(quick, "curves"):
+        if not r["ok"]:
+            continue
+        t, it, rel = np.array(r["curve"]).T
+        assert np.all(np.diff(t) >= 0) and it[0] == 0 and it[-1] == r["iterations"], r["method"]
+        assert rel[-1] <= 1e-8 and stats.time_to(r["curve"], 1e-3) <= stats.time_to(r["curve"], 1e-8)
+        assert t[0] >= r["setup_ms"] * 0.5
+
+
+def test_stability_covers_every_case(quick):
+    rows = rows_of(quick, "stability")
+    assert {(r["case"], r["method"]) for r in rows} == {(c, m) for c, _ in STRESS for m in DEFAULT_METHODS}
+    jac = {r["case"]: r for r in rows if r["method"] == "cg_jacobi"}
+    assert jac["large N"]["n"] == 2048 and jac["odd N"]["n"] == 300
+    assert jac["rtol 1e-10"]["rtol"] == 1e-10 and jac["rtol 1e-10"]["relres_proj"] <= 1e-9
+    assert jac["natural order"]["ok"] and jac["reference"]["ok"]
+    assert jac["inconsistent rhs"]["relres"] > 0.05      # the constant part of b can never be matched
+    report = (quick / "report.md").read_text()
+    for case, _ in STRESS:
+        assert f"| {case} |" in report
+
+
+def test_report_only_reproduces_the_report(quick, tmp_path):
+    copy = tmp_path / "copy"
+    shutil.copytree(quick, copy)
+    for png in copy.glob("*.png"):
+        png.unlink()
+    (copy / "report.md").unlink()
+    assert main(["--report-only", str(copy)]) == 0
+    assert (copy / "report.md").read_text() == (quick / "report.md").read_text()
+    for name in QUICK_PNGS:
+        assert (copy / name).stat().st_size > 2000
+
+
+def test_readme_block_rewrite(quick, tmp_path, capsys):
+    readme = tmp_path / "README.md"
+    head, tail = "# project\n\nintro\n\n## Results\n\n", "\n\n## Licence\n\nBSD\n"
+    readme.write_text(f"{head}{START}\nold text\n{END}{tail}")
+    assert main(["--readme", str(quick), "--readme-file", str(readme)]) == 0
+    text = readme.read_text()
+    assert text.startswith(head + START) and text.endswith(END + tail) and "old text" not in text
+    block = text[text.index(START):text.index(END)]
+    rel = os.path.relpath(quick, tmp_path)
+    assert f"({rel}/report.md)" in block and f"({rel}/table4.png)" in block and f"({rel}/scaling.png)" in block
+    meta = json.loads((quick / "meta.json").read_text())
+    assert meta["date"] in block and meta["machine"]["cpu"] in block
+    for m in DEFAULT_METHODS:
+        assert f"| {m} |" in block
+    assert main(["--readme", str(quick), "--readme-file", str(readme)]) == 0
+    assert readme.read_text() == text
+    bare = tmp_path / "BARE.md"
+    bare.write_text("# no markers\n")
+    capsys.readouterr()
+    assert main(["--readme", str(quick), "--readme-file", str(bare)]) == 2
+    err = capsys.readouterr().err
+    assert START in err and END in err and bare.read_text() == "# no markers\n"
+
+
+# ------------------------------------------------------------------ failures
+
+def test_failing_methods_become_failure_rows(env, tmp_path):
+    bad = tmp_path / "broken_pc.opts"
+    bad.write_text("-options_file options/common.opts\n-ksp_type cg\n-pc_type python\n"
+                   "-pc_python_type nonexistent.Module\n")
+    short = tmp_path / "two_its.opts"
+    short.write_text("-options_file options/common.opts\n-ksp_type cg\n-pc_type jacobi\n-ksp_max_it 2\n")
+    out = tmp_path / "fail"
+    argv = ["--quick", "--out", str(out), "--methods", str(bad), "cg_jacobi", str(short),
+            "--studies", "table", "stability", "--scales", "256", "--frames", "1", *env["common"]]
+    assert main(argv) == 0
+    rows = by_method(rows_of(out, "table"))
+    assert [r["failure"] for r in rows["broken_pc"]] == ["EXCEPTION"]
+    assert "nonexistent" in rows["broken_pc"][0]["error"]
+    assert rows["two_its"][0]["failure"] == "DIVERGED_MAX_IT" and rows["two_its"][0]["iterations"] == 2
+    assert rows["cg_jacobi"][0]["ok"]
+    stab = by_method(rows_of(out, "stability"))
+    assert len(stab["broken_pc"]) == len(STRESS) and not any(r["ok"] for r in stab["broken_pc"])
+    assert all(r["ok"] for r in stab["cg_jacobi"] if r["case"] != "inconsistent rhs")
+    report = (out / "report.md").read_text()
+    assert "| broken_pc | ✗ exception |" in report and "| two_its | ✗ max it |" in report
+    assert "Failures:" in report
+
+
+def test_unknown_method_is_a_usage_error(env, tmp_path, capsys):
+    assert main(["--quick", "--out", str(tmp_path / "x"), "--methods", "cg_nothing"]) == 2
+    assert "cg_nothing" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ pieces
+
+def test_options_loader_follows_includes_and_sets_bjacobi_blocks():
+    from petsc4py import PETSc
+
+    pairs = dict(read_options_file(resolve_method("cg_jacobi").path))
+    assert pairs["ksp_rtol"] == "1e-8" and pairs["pc_type"] == "jacobi"
+    method = resolve_method("cg_bjacobi")
+    with MethodOptions(method) as opts:
+        opts.set_blocks(1000)
+        db = PETSc.Options(method.prefix)
+        assert db.getInt("pc_bjacobi_blocks") == 8 and db.getString("sub_pc_type") == "cholesky"
+        assert not db.hasName("ksp_converged_reason")
+    assert not PETSc.Options(method.prefix).hasName("pc_type")
+
+
+def test_natural_order_is_the_same_system():
+    frame = make_frame(300, seed=3)
+    nat = natural_order(frame)
+    order = np.argsort(frame.perm)
+    assert np.all(np.diff(nat.perm) > 0)
+    np.testing.assert_allclose(nat.A.toarray(), frame.A.toarray()[np.ix_(order, order)])
+    np.testing.assert_allclose(nat.b, frame.b[order])
+
+
+def test_stats_helpers():
+    assert stats.scaling_exponent([1024, 2048, 4096], [1.0, 4.0, 16.0]) == pytest.approx(2.0)
+    assert stats.largest_within([1, 2, 3], [5.0, 20.0, 50.0], 41.7) == 2
+    assert stats.pareto_front([(1, 5), (2, 3), (3, 4), (4, 1)]) == [0, 1, 3]
+    assert stats.time_to([[1.0, 0, 1.0], [2.0, 1, 1e-4], [3.0, 2, 1e-9]], 1e-3) == 2.0
+    assert stats.time_to([[1.0, 0, 1.0]], 1e-3) is None
+
+
+# ---------------------------------------------------------- trained-model studies
+
+def test_trained_model_studies(env, tmp_path):
+    """One real tiny training run feeds the generalization, size and profile studies and their report."""
+    from petsc_htp.bench import cli, studies, training
+    from petsc_htp.bench.runner import htp_options
+
+    budget = training.Budget(minutes=0.5, steps=2, scales=(256,), frames=2, eval_n=256, log_every=1, eval_every=1)
+    cfg = HTPConfig(d=32, n_layers=1, heads=4)
+    path = training.trained_checkpoint(tmp_path, cfg, "full", "cosine", budget)
+    stamp = path.stat().st_mtime_ns
+    assert training.trained_checkpoint(tmp_path, cfg, "full", "cosine", budget) == path
+    assert path.stat().st_mtime_ns == stamp                      # same budget: reused, not retrained
+    info = training.model_info(path)
+    assert info["train_steps"] == 2 and info["d"] == 32 and info["params"] == HTPNet(cfg).n_params()
+    wide = HTPConfig(d=64, n_layers=1, heads=4, highways=False)
+    other = checkpoint.save(tmp_path / "wide.pt", HTPNet(wide), {"loss": "sai", "steps": 0, "wall_s": 0.0})
+
+    out = tmp_path / "res"
+    extra, tick = htp_options(threads=1), lambda: None
+    rows = {"generalization": studies.generalization_rows({"full": path, "no_closed": other}, 256, 1, extra, tick),
+            "size": studies.size_rows([(cfg, "cosine", path), (wide, "sai", other)], cfg, [256], 1, extra, tick),
+            "profile": studies.profile_rows(path.parent / "train_log.jsonl", path, 256)}
+    for study, got in rows.items():
+        store.write_jsonl(store.study_path(out, study), got)
+    store.write_json(out / "meta.json", {"studies": list(rows), "budget": {"text": budget.describe()},
+                                         "generalization": {"n": 256, "frames": 1}, "size": {"frames": 1}})
+    cli.finish(out)
+
+    gen = rows["generalization"]
+    assert len(gen) == 4 * 3 and {r["train"] for r in gen} == {None, "full", "no_closed"}
+    assert all(r["ok"] for r in gen if r["method"] == "cg_jacobi")
+    assert {r["config"]: r["params"] for r in rows["size"]} == {
+        "d=32, n_l=1, hw, cosine": HTPNet(cfg).n_params(), "d=64, n_l=1, no-hw, sai": HTPNet(wide).n_params()}
+    prof = stats.group(rows["profile"], "kind")
+    assert [r["step"] for r in prof[("train",)]][:2] == [1, 2] and len(prof[("baseline",)]) == 2
+    spec = {r["method"]: r for r in prof[("spectrum",)]}
+    assert set(spec) == {"none", "jacobi", "htp"} and len(spec["none"]["eigs"]) == 255
+    assert spec["jacobi"]["kappa"] < spec["none"]["kappa"]
+
+    report = (out / "report.md").read_text()
+    for heading in ("## 5. Generalization", "## 6. Model size", "## 7. Training profile"):
+        assert heading in report
+    assert "at most 2 steps and 0.5 min per model" in report
+    assert "| Full / in-distribution |" in report and "| Excl. closed barriers |" in report
+    assert "Smallest configuration within 10% of the fastest" in report
+    for name in ("generalization.png", "size.png", "profile.png", "spectrum.png"):
+        assert (out / name).stat().st_size > 2000
+
+    cli_out = tmp_path / "cli"
+    assert main(["--quick", "--out", str(cli_out), "--studies", "profile", "--train-log",
+                 str(path.parent / "train_log.jsonl"), *env["common"]]) == 0
+    assert "## 7. Training profile" in (cli_out / "report.md").read_text()
+
+
+def test_fastpath_study_runs_on_this_machine(env, tmp_path):
+    import torch
+
+    out = tmp_path / "fast"
+    assert main(["--quick", "--out", str(out), "--studies", "fastpath", "--scales", "256", "--frames", "1",
+                 *env["common"]]) == 0
+    rows = rows_of(out, "fastpath")
+    assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp"]
+    assert all(r["n"] == 256 and r["us_per_iter"] > 0 for r in rows)
+    assert all(r["ok"] for r in rows if r["method"] != "htp")
+    report = (out / "report.md").read_text()
+    assert "## 8. Fast path" in report and (out / "fastpath.png").stat().st_size > 2000
+    if not torch.cuda.is_available():
+        assert rows[0]["device"] == "cpu" and "ran eagerly" in report
