@@ -119,9 +119,9 @@ def _is_number(text):
 
 
 def insert_options(pairs, prefix="", override=True):
-    """Put (name, value) pairs into PETSc's database under ``prefix``."""
+    """Put (name, value) pairs into PETSc's database under ``prefix`` (later pairs win)."""
     db = PETSc.Options()
-    for name, value in pairs:
+    for name, value in dict(pairs).items():
         full = prefix + name
         if override or not db.hasName(full):
             db.setValue(full, "" if value is None else value)

@@ -29,8 +29,8 @@ option                 default       meaning
 ``-htp_ordering``      auto          auto, morton, rcm, natural (auto: Morton with coordinates,
                                      RCM without, the given order when it already is Morton)
 ``-htp_shift``         0             add ``shift * D^-1`` to M (SPD safety margin)
-``-htp_threads``       0             torch CPU threads (0: torch's default, or the cores
-                                     divided by the MPI ranks on the node)
+``-htp_threads``       1             torch CPU threads per rank (PETSc parallelism is MPI;
+                                     raise it for large N on otherwise idle cores)
 ``-htp_fallback``      none          none or jacobi: use ``D^-1`` when the factors are not
                                      finite or the Rayleigh probe proves M indefinite
 ``-htp_probe``         4             random Rayleigh-quotient probes of M at setup (0: none)
@@ -75,7 +75,7 @@ OPTIONS = (
     ("device", "string", "auto", "torch device for the network and the apply: cpu, cuda[:k] or auto"),
     ("ordering", "string", "auto", "row ordering: auto (Morton with coordinates, else RCM), morton, rcm or natural"),
     ("shift", "real", 0.0, "add shift * D^-1 to M (SPD safety margin)"),
-    ("threads", "int", 0, "torch CPU threads (0: torch's default; cores / MPI ranks per node under MPI)"),
+    ("threads", "int", 1, "torch CPU threads per rank (PETSc parallelism is MPI)"),
     ("fallback", "string", "none", "none or jacobi: apply D^-1 when the factors are non-finite or M is indefinite"),
     ("probe", "int", 4, "random Rayleigh-quotient probes of M at setup (0: skip the check)"),
 )
@@ -195,30 +195,6 @@ def _checkpoint_path(text: str) -> Path:
     return Path(text).expanduser().resolve() if text else _checkpoint.DEFAULT
 
 
-def _auto_threads() -> int:
-    """Torch threads when -htp_threads is 0: split the cores between the MPI ranks on this node.
-
-    Returns 0 (leave torch alone) for a single rank or when OMP_NUM_THREADS is set.
-    Reads the launcher's environment (no collective call: setUp may run on one rank only).
-    """
-    if os.environ.get("OMP_NUM_THREADS"):
-        return 0
-    local = 0
-    for var in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE", "MV2_COMM_WORLD_LOCAL_SIZE"):
-        if os.environ.get(var, "").isdigit():
-            local = int(os.environ[var])
-            break
-    if not local:
-        local = PETSc.COMM_WORLD.getSize()
-    if local <= 1:
-        return 0
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:
-        cores = os.cpu_count() or 1
-    return max(1, cores // local)
-
-
 def _load_network(path: Path, device: str, threads: int) -> HTP:
     """Load (or reuse) the network of ``path`` on ``device``."""
     try:
@@ -298,8 +274,8 @@ class HTPPC:
             raise ValueError(f"{opt}device {out['device']!r} unknown; use cpu, cuda or auto")
         if not math.isfinite(out["shift"]) or out["shift"] < 0:
             raise ValueError(f"{opt}shift must be a finite non-negative number, got {out['shift']}")
-        if out["threads"] < 0:
-            raise ValueError(f"{opt}threads must be >= 0, got {out['threads']}")
+        if out["threads"] < 1:
+            raise ValueError(f"{opt}threads must be >= 1, got {out['threads']}")
         if out["probe"] < 0:
             raise ValueError(f"{opt}probe must be >= 0, got {out['probe']}")
         self.opts = out
@@ -337,7 +313,7 @@ class HTPPC:
         try:
             self._key = None
             A = _read_csr(P)
-            self.htp = _load_network(ckpt, opts["device"], opts["threads"] or _auto_threads())
+            self.htp = _load_network(ckpt, opts["device"], opts["threads"])
             self.checkpoint = ckpt
             setup = self.htp.setup(A, coords=coords, density=density,
                                    ordering=opts["ordering"], shift=opts["shift"])

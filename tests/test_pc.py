@@ -62,6 +62,15 @@ def indefinite_ckpt(tmp_path_factory):
     return path
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _restore_torch_threads():
+    """-htp_threads 1 sets torch's process-wide thread count; give it back to later test modules."""
+    import torch
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)
+
+
 @pytest.fixture(scope="module")
 def frame():
     return make_frame(1024, seed=3)

@@ -444,7 +444,9 @@ ones, product = mat.createVecs()
 ones.set(1.0)
 mat.mult(ones, product)
 assert product.norm() <= 1e-10 * frame.A.diagonal().max()
-print("rank ok", mat.getComm().getRank())
+from petsc4py import PETSc
+PETSc.Sys.syncPrint("rank ok", mat.getComm().getRank())   # ordered output, no interleaving
+PETSc.Sys.syncFlush()
 """
 
 
@@ -460,4 +462,4 @@ def test_petsc_mat_distributed_over_two_ranks():
     result = subprocess.run([mpiexec, "-n", "2", sys.executable, "-c", MPI_SCRIPT],
                             capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0, result.stderr
-    assert sorted(result.stdout.splitlines()) == ["rank ok 0", "rank ok 1"]
+    assert result.stdout.splitlines() == ["rank ok 0", "rank ok 1"]
