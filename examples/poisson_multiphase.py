@@ -33,7 +33,6 @@ name plus ``_``) into a fresh KSP, so the methods cannot leak into each other;
 to every method. The exit status is non-zero when the main method did not
 converge (after printing PETSc's reason).
 """
-import shlex
 import sys
 import time
 from pathlib import Path
@@ -66,6 +65,7 @@ from petsc4py import PETSc  # noqa: E402
 
 
 import petsc_htp  # noqa: E402
+from petsc_htp.options import read_options_file  # noqa: E402
 from petsc_htp.scenes import make_frame, plot_frame  # noqa: E402
 
 DEFAULT_FILES = ("common.opts", "cg_htp.opts")
@@ -73,50 +73,6 @@ PROPAGATE = ("ksp_rtol", "ksp_atol", "ksp_max_it")
 
 
 # --------------------------------------------------------------- options files
-
-def _resolve(path, base=None):
-    """An options file path: as given, against the cwd, then the repository root."""
-    p = Path(path).expanduser()
-    for cand in ([p] if p.is_absolute() else [Path.cwd() / p, ROOT / p] + ([base / p] if base else [])):
-        if cand.is_file():
-            return cand
-    raise FileNotFoundError(f"options file {path} not found (looked in {Path.cwd()} and {ROOT})")
-
-
-def read_options_file(path, _seen=None):
-    """Parse a PETSc options file into [(name without '-', value or None)], following -options_file."""
-    path = _resolve(path)
-    seen = set() if _seen is None else _seen
-    if path in seen:
-        raise ValueError(f"options file {path} includes itself")
-    seen.add(path)
-    tokens = []
-    for line in path.read_text().splitlines():
-        tokens += shlex.split(line, comments=True)
-    pairs, i = [], 0
-    while i < len(tokens):
-        key = tokens[i]
-        if not key.startswith("-") or _is_number(key):
-            raise ValueError(f"{path}: expected an option, got {key!r}")
-        value = None
-        if i + 1 < len(tokens) and (not tokens[i + 1].startswith("-") or _is_number(tokens[i + 1])):
-            value = tokens[i + 1]
-            i += 1
-        i += 1
-        if key == "-options_file":
-            pairs += read_options_file(value, seen)
-        else:
-            pairs.append((key.lstrip("-"), value))
-    return pairs
-
-
-def _is_number(text):
-    try:
-        float(text)
-        return True
-    except ValueError:
-        return False
-
 
 def insert_options(pairs, prefix="", override=True):
     """Put (name, value) pairs into PETSc's database under ``prefix`` (later pairs win)."""

@@ -17,6 +17,17 @@ def grid_laplacian(nx, ny, dirichlet=0.0):
     return sp.csr_matrix(A)
 
 
+@pytest.fixture(scope="session")
+def tiny_ckpt(tmp_path_factory):
+    """A small untrained network checkpoint (its M starts out close to Jacobi)."""
+    from petsc_htp import checkpoint
+    from petsc_htp.model import HTPConfig, HTPNet
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
+    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
+    return path
+
+
 @pytest.fixture
 def tiny_cfg():
     """A small network configuration that runs in milliseconds."""

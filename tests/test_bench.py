@@ -14,7 +14,8 @@ from petsc_htp.bench import main, stats, store  # noqa: E402
 from petsc_htp.bench.cases import STRESS, natural_order  # noqa: E402
 from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E402
 from petsc_htp.bench.readme import END, START  # noqa: E402
-from petsc_htp.bench.runner import MethodOptions, read_options_file  # noqa: E402
+from petsc_htp.bench.runner import MethodOptions  # noqa: E402
+from petsc_htp.options import read_options_file  # noqa: E402
 from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 from petsc_htp.scenes import make_frame  # noqa: E402
 

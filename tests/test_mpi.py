@@ -9,23 +9,12 @@ import pytest
 
 pytest.importorskip("petsc4py")
 
-from petsc_htp import checkpoint  # noqa: E402
-from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"
 MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import__('os').environ.get('PATH', '')}")
 
 pytestmark = [pytest.mark.mpi, pytest.mark.skipif(MPIEXEC is None, reason="mpiexec not found")]
-
-
-@pytest.fixture(scope="session")
-def tiny_ckpt(tmp_path_factory):
-    import torch
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
-    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
-    return path
 
 
 def mpirun(*args, n=2, timeout=300):

@@ -9,20 +9,10 @@ import pytest
 pytest.importorskip("petsc4py")
 
 from petsc_htp import checkpoint  # noqa: E402
-from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"
 METHODS = sorted(p.stem for p in (ROOT / "options").glob("*.opts") if p.name != "common.opts")
-
-
-@pytest.fixture(scope="session")
-def tiny_ckpt(tmp_path_factory):
-    import torch
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
-    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
-    return path
 
 
 def run_example(*args, timeout=300):
@@ -89,7 +79,7 @@ def test_help_lists_htp_options_with_defaults(tiny_ckpt):
     assert code == 0, out
     assert re.search(r"-htp_probe <int> <now 2 : formerly 4>: random Rayleigh", out), out[-3000:]
     for name, default in (("checkpoint", str(checkpoint.DEFAULT)), ("device", "auto"), ("ordering", "auto"),
-                          ("shift", "0.0"), ("threads", "0"), ("fallback", "none")):
+                          ("shift", "0.0"), ("threads", "1"), ("fallback", "none")):
         assert re.search(rf"-htp_{name} <\w+> <now .* : formerly {re.escape(default)}>: \S", out), (name, out[-3000:])
 
 

@@ -25,16 +25,6 @@ _PREFIXES = itertools.count()
 # ------------------------------------------------------------------ fixtures
 
 @pytest.fixture(scope="session")
-def tiny_ckpt(tmp_path_factory):
-    """A small untrained network (its M starts out close to Jacobi)."""
-    import torch
-    torch.manual_seed(0)
-    path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
-    checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
-    return path
-
-
-@pytest.fixture(scope="session")
 def nan_ckpt(tmp_path_factory):
     """A checkpoint whose weights are all NaN."""
     import torch

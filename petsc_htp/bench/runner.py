@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import re
-import shlex
 import time
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..pc import attach
-from .methods import OPTIONS_DIR, ROOT
+from ..options import OPTIONS_DIR, read_options_file
 
 # Options that only print (the bench records the reason itself).
 PRINT_ONLY = ("ksp_converged_reason",)
@@ -33,51 +32,6 @@ PYAMG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_MAX_IT", "na
 
 
 # ------------------------------------------------------------------ options files
-
-def _resolve(path, base=None) -> Path:
-    """An options file: as given, against the cwd, the repository root, then ``base``."""
-    p = Path(path).expanduser()
-    candidates = [p] if p.is_absolute() else [Path.cwd() / p, ROOT / p] + ([base / p] if base else [])
-    for cand in candidates:
-        if cand.is_file():
-            return cand.resolve()
-    raise FileNotFoundError(f"options file {path} not found (looked in {Path.cwd()} and {ROOT})")
-
-
-def _is_number(text) -> bool:
-    try:
-        float(text)
-        return True
-    except ValueError:
-        return False
-
-
-def read_options_file(path, _base=None, _seen=None) -> list:
-    """Parse a PETSc options file into ``[(name without '-', value or None)]``, following includes."""
-    path = _resolve(path, _base)
-    seen = set() if _seen is None else _seen
-    if path in seen:
-        raise ValueError(f"options file {path} includes itself")
-    seen.add(path)
-    tokens = []
-    for line in path.read_text().splitlines():
-        tokens += shlex.split(line, comments=True)
-    pairs, i = [], 0
-    while i < len(tokens):
-        key = tokens[i]
-        if not key.startswith("-") or _is_number(key):
-            raise ValueError(f"{path}: expected an option, got {key!r}")
-        value = None
-        if i + 1 < len(tokens) and (not tokens[i + 1].startswith("-") or _is_number(tokens[i + 1])):
-            value = tokens[i + 1]
-            i += 1
-        i += 1
-        if key == "-options_file":
-            pairs += read_options_file(value, path.parent, seen)
-        else:
-            pairs.append((key.lstrip("-"), value))
-    return pairs
-
 
 def common_setting(name, default):
     """A value of ``options/common.opts`` (the shared tolerances), as a float."""
