@@ -1,0 +1,169 @@
+"""The fast-path preconditioners (none, jacobi, bjacobi, htp), their factory and apply microbenchmark."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import torch
+
+from .timing import _capture, _device, _sync, _timed
+
+METHODS = ("none", "jacobi", "bjacobi", "htp")
+
+
+def _constant_null(A) -> bool:
+    """True when A 1 = 0 (row sums below 1e-10 max|diag|): constants span a null space."""
+    return bool(np.abs(A @ np.ones(A.shape[0])).max() <= 1e-10 * np.abs(A.diagonal()).max())
+
+
+class Preconditioner:
+    """Identity preconditioner and the protocol every method follows.
+
+    ``setup`` computes (or recomputes in place, for a new operator of the same
+    N) the device data; ``apply_(r, z)`` writes ``z = M r`` into the float32
+    length-N buffer ``z`` with device ops only. ``perm`` (None = identity) is
+    the ordering the solver must run in.
+    """
+
+
+    def __init__(self, A, coords=None, density=None, device="auto"):
+        self.A, self.coords, self.density = sp.csr_matrix(A), coords, density
+        self.n = self.A.shape[0]
+        self.device = _device(device)
+        self.perm = None
+        self.setup_ms = None
+
+    def setup(self, A=None, coords=None, density=None) -> float:
+        """(Re)compute for ``A`` (default: the bound operator); return and store the milliseconds."""
+        if A is not None:
+            if A.shape != (self.n, self.n):
+                raise ValueError(f"operator has shape {A.shape}; this preconditioner was built for N={self.n}")
+            self.A, self.coords, self.density = sp.csr_matrix(A), coords, density
+        t0 = time.perf_counter()
+        self._setup()
+        _sync(self.device)
+        self.setup_ms = 1e3 * (time.perf_counter() - t0)
+        return self.setup_ms
+
+    def _setup(self):
+        pass
+
+    def apply_(self, r: torch.Tensor, z: torch.Tensor):
+        """z = M r in place."""
+        z.copy_(r)
+
+
+class Jacobi(Preconditioner):
+    """z = D^-1 r."""
+
+    inv_diag = None
+
+    def _setup(self):
+        inv = torch.from_numpy(1.0 / self.A.diagonal()).to(self.device, torch.float32)
+        if self.inv_diag is None:
+            self.inv_diag = inv
+        else:
+            self.inv_diag.copy_(inv)
+
+    def apply_(self, r, z):
+        torch.mul(r, self.inv_diag, out=z)
+
+
+class BlockJacobi(Preconditioner):
+    """Exact inverses of A's contiguous ``block`` x ``block`` diagonal blocks, one batched GEMM per apply.
+
+    The last block is padded with the identity; one batched float64 Cholesky
+    gives the inverses, stored in float32. A singular whole-matrix block
+    (N <= block, A 1 = 0) gets the rank-one term max(diag) 11^T / N, so its
+    inverse is exact on mean-zero vectors.
+    """
+
+    block = 128
+    inv = None
+
+    def _setup(self):
+        b, n = self.block, self.n
+        nb = -(-n // b)
+        coo = self.A.tocoo()
+        keep = coo.row // b == coo.col // b
+        dense = np.zeros((nb, b, b))
+        np.add.at(dense, (coo.row[keep] // b, coo.row[keep] % b, coo.col[keep] % b), coo.data[keep])
+        pad = np.arange(n, nb * b)
+        dense[pad // b, pad % b, pad % b] = 1.0
+        blocks = torch.from_numpy(dense).to(self.device)
+        if n <= b and _constant_null(self.A):  # one singular block: invert A + max(diag) 11^T / n
+            blocks[0, :n, :n] += self.A.diagonal().max() / n
+        inv = torch.cholesky_inverse(torch.linalg.cholesky(blocks)).float()
+        if self.inv is None:
+            self.inv = inv
+            self.rp = torch.zeros(nb * b, device=self.device)
+            self.zp = torch.zeros_like(self.rp)
+        else:
+            self.inv.copy_(inv)
+
+    def apply_(self, r, z):
+        nb, b = self.inv.shape[:2]
+        self.rp[:self.n].copy_(r)
+        torch.bmm(self.inv, self.rp.view(nb, b, 1), out=self.zp.view(nb, b, 1))
+        z.copy_(self.zp[:self.n])
+
+
+class HTPPreconditioner(Preconditioner):
+    """The learned preconditioner: ``htp.setup`` gives an HTPOperator applied on its own buffers.
+
+    The solver runs in the HTP ordering ``perm``; a new operator's factors are
+    copied into the first operator's buffers so a captured graph stays valid.
+    """
+
+    op = None
+
+    def __init__(self, A, htp, coords=None, density=None, device="auto"):
+        super().__init__(A, coords, density, device)
+        if _device(htp.device) != self.device:
+            raise ValueError(f"the HTP network lives on {htp.device}, not on {self.device}")
+        self.htp = htp
+
+    def _setup(self):
+        s = self.htp.setup(self.A, self.coords, self.density)
+        if self.op is None:
+            self.op = s.op
+        else:
+            self.op.load_(s.op.packed)
+        self.perm = s.perm
+
+    def apply_(self, r, z):
+        self.op.r[:self.n, 0].copy_(r)
+        self.op.apply_()
+        z.copy_(self.op.y[:self.n, 0])
+
+
+def make_preconditioner(method, A, htp=None, coords=None, density=None, device="auto") -> Preconditioner:
+    """Build (without setting up) preconditioner ``method`` (none, jacobi, bjacobi, htp) for ``A``."""
+    classes = {"none": Preconditioner, "jacobi": Jacobi, "bjacobi": BlockJacobi}
+    if method == "htp":
+        if htp is None:
+            raise ValueError("method 'htp' needs a loaded HTP network (htp=None given)")
+        return HTPPreconditioner(A, htp, coords, density, device)
+    if method not in classes:
+        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    return classes[method](A, coords, density, device)
+
+
+def apply_microbench(precond: Preconditioner, n_apply: int = 50) -> float:
+    """Microseconds per ``precond.apply_`` (one CUDA Graph of ``n_apply`` applies on GPU)."""
+    dev = precond.device
+    r = torch.randn(precond.n, device=dev)
+    z = torch.empty_like(r)
+
+    def run():
+        for _ in range(n_apply):
+            precond.apply_(r, z)
+
+    if dev.type == "cuda":
+        graph, _ = _capture(run, warmup=1)
+        _, ms = _timed(graph.replay, dev)
+    else:
+        precond.apply_(r, z)
+        _, ms = _timed(run, dev)
+    return 1e3 * ms / n_apply
