@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as sla
 import torch
 
 from . import checkpoint
@@ -40,6 +41,7 @@ class Setup:
     ordering: str
     setup_ms: float
     shift: float
+    guard_shift: float = 0.0
 
     @property
     def n(self) -> int:
@@ -55,6 +57,15 @@ class Setup:
     def factors_finite(self) -> bool:
         """True when every packed factor is finite."""
         return bool(torch.isfinite(self.op.packed).all())
+
+    def min_scaled_eigenvalue(self, diag: np.ndarray, seed: int = 0) -> float:
+        """Most negative eigenvalue of D^1/2 M D^1/2 (Lanczos, a few dozen applies; HTP ordering)."""
+        sd = np.sqrt(diag)
+        n = self.n
+        op = sla.LinearOperator((n, n), matvec=lambda v: sd * self.op.apply(sd * np.ravel(v)), dtype=np.float64)
+        v0 = np.random.default_rng(seed).standard_normal(n)
+        return float(sla.eigsh(op, k=1, which="SA", ncv=min(24, n - 1), tol=1e-2, maxiter=200, v0=v0,
+                               return_eigenvectors=False)[0])
 
     def min_rayleigh(self, probes: int = 8, seed: int = 0) -> float:
         """Smallest Rayleigh quotient r^T M r / r^T r over random probes (< 0 proves M indefinite)."""
@@ -83,7 +94,8 @@ class HTP:
         return cls(net, prov, device, threads)
 
     @torch.no_grad()
-    def setup(self, A, coords=None, density=None, ordering="auto", shift: float = 0.0) -> Setup:
+    def setup(self, A, coords=None, density=None, ordering="auto", shift: float = 0.0,
+              spd_guard: bool = True) -> Setup:
         """Order, partition, run the network and bind the factors to ``A``.
 
         Parameters
@@ -92,6 +104,8 @@ class HTP:
         coords, density : optional per-row geometry and density (caller's ordering)
         ordering : auto, morton, rcm or natural
         shift : extra diagonal term ``shift * D^-1`` added to M (SPD safety margin)
+        spd_guard : estimate the most negative eigenvalue of D^1/2 M D^1/2 by Lanczos and, when
+            it is negative, add ``1.2 |lambda_min| D^-1`` so that M is SPD (``Setup.guard_shift``)
         """
         t0 = time.perf_counter()
         A = sp.csr_matrix(A)
@@ -104,6 +118,13 @@ class HTP:
         packed = self.net(inp, part)
         if shift:
             packed[-part.n_pad:] += shift * inp.inv_diag
+        pre = Setup(HTPOperator(packed, part), perm, name, 0.0, shift)
+        if spd_guard and n > 1 and pre.factors_finite():
+            lam = pre.min_scaled_eigenvalue(Ap.diagonal())
+            if lam < 0:
+                pre.guard_shift = 1.2 * -lam
+                packed[-part.n_pad:] += pre.guard_shift * inp.inv_diag
         if self.device.type == "cuda":
             torch.cuda.synchronize()
-        return Setup(HTPOperator(packed, part), perm, name, 1e3 * (time.perf_counter() - t0), shift)
+        pre.setup_ms = 1e3 * (time.perf_counter() - t0)
+        return pre

@@ -29,6 +29,8 @@ option                 default       meaning
 ``-htp_ordering``      auto          auto, morton, rcm, natural (auto: Morton with coordinates,
                                      RCM without, the given order when it already is Morton)
 ``-htp_shift``         0             add ``shift * D^-1`` to M (SPD safety margin)
+``-htp_spd_guard``     true          estimate lambda_min(D^1/2 M D^1/2) by Lanczos at setup and,
+                                     when negative, add ``1.2 |lambda_min| D^-1`` (M becomes SPD)
 ``-htp_threads``       1             torch CPU threads per rank (PETSc parallelism is MPI;
                                      raise it for large N on otherwise idle cores)
 ``-htp_fallback``      none          none or jacobi: use ``D^-1`` when the factors are not
@@ -75,6 +77,7 @@ OPTIONS = (
     ("device", "string", "auto", "torch device for the network and the apply: cpu, cuda[:k] or auto"),
     ("ordering", "string", "auto", "row ordering: auto (Morton with coordinates, else RCM), morton, rcm or natural"),
     ("shift", "real", 0.0, "add shift * D^-1 to M (SPD safety margin)"),
+    ("spd_guard", "bool", True, "Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD"),
     ("threads", "int", 1, "torch CPU threads per rank (PETSc parallelism is MPI)"),
     ("fallback", "string", "none", "none or jacobi: apply D^-1 when the factors are non-finite or M is indefinite"),
     ("probe", "int", 4, "random Rayleigh-quotient probes of M at setup (0: skip the check)"),
@@ -261,7 +264,7 @@ class HTPPC:
     def _read_options(self, pc) -> dict:
         """Read and validate the ``<prefix>htp_*`` options."""
         db = PETSc.Options(self._prefix(pc))
-        get = {"string": db.getString, "real": db.getReal, "int": db.getInt}
+        get = {"string": db.getString, "real": db.getReal, "int": db.getInt, "bool": db.getBool}
         out = {}
         for name, kind, default, _ in OPTIONS:
             out[name] = get[kind](name, default)
@@ -306,7 +309,7 @@ class HTPPC:
         coords, density = _attached(P)
         ckpt = _checkpoint_path(opts["checkpoint"])
         key = (P.getId(), P.stateGet(), P.getAttr(VERSION_ATTR), str(ckpt),
-               opts["device"], opts["ordering"], opts["shift"], opts["fallback"], opts["probe"])
+               opts["device"], opts["ordering"], opts["shift"], opts["spd_guard"], opts["fallback"], opts["probe"])
         if key == self._key and self.setup is not None:
             return
         self._ev_setup.begin()
@@ -316,7 +319,7 @@ class HTPPC:
             self.htp = _load_network(ckpt, opts["device"], opts["threads"])
             self.checkpoint = ckpt
             setup = self.htp.setup(A, coords=coords, density=density,
-                                   ordering=opts["ordering"], shift=opts["shift"])
+                                   ordering=opts["ordering"], shift=opts["shift"], spd_guard=opts["spd_guard"])
             self.setup = setup
             self.setup_ms = setup.setup_ms
             self.setup_count += 1
@@ -394,6 +397,8 @@ class HTPPC:
             out.append(f"  operator: N={part.n}, L={part.leaf}, K={part.n_leaves} leaves, "
                        f"M_H={part.n_tiles} tiles; factor memory {self.setup.op.nbytes / 2**20:.2f} MB")
             import torch
+            out.append(f"  SPD guard: {'on' if opts['spd_guard'] else 'off'}; guard shift added: "
+                       f"{self.setup.guard_shift:.3g} * D^-1")
             out.append(f"  ordering: {self.setup.ordering}; device: {self.htp.device}; shift: {opts['shift']:g}; "
                        f"torch threads: {torch.get_num_threads()}")
             out.append(f"  last setup (inference): {self.setup_ms:.1f} ms; setups: {self.setup_count}")

@@ -1,5 +1,6 @@
 """HTPPC inside real PETSc KSPs (petsc4py, no mocks)."""
 import itertools
+import re
 import subprocess
 import sys
 import tempfile
@@ -149,10 +150,11 @@ def test_converges_with_cg_and_gmres(frame, tiny_ckpt, options, ksp_type):
 
 
 @pytest.mark.skipif(not checkpoint.DEFAULT.exists(), reason="shipped checkpoint not trained yet")
-@pytest.mark.parametrize("ksp_type", ["cg", "gmres"])
+@pytest.mark.parametrize("ksp_type", ["cg", "fgmres"])
 def test_shipped_checkpoint_beats_jacobi_on_held_out_frames(options, ksp_type):
+    """CG, and flexible GMRES (a float32 M is not exactly linear, see options/gmres_htp.opts)."""
     krylov = {"ksp_type": ksp_type, "ksp_rtol": 1e-8, "ksp_norm_type": "unpreconditioned", "ksp_max_it": 20000}
-    if ksp_type == "gmres":
+    if ksp_type == "fgmres":
         krylov.update(ksp_pc_side="right", ksp_gmres_restart=100)
     for seed in (TEST_SEED_OFFSET, TEST_SEED_OFFSET + 1):
         fr = make_frame(1024, seed=seed)
@@ -397,14 +399,24 @@ def test_nan_weights_with_jacobi_fallback_converge(frame, nan_ckpt, options):
     assert abs(its - its_jacobi) <= 1
 
 
+def test_spd_guard_shifts_an_indefinite_m(frame, indefinite_ckpt, options):
+    A = frame_mat(frame)
+    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt)))          # the guard is on by default
+    reason, _, relres = solve(ksp, A, frame.b)
+    ctx = ksp.getPC().getPythonContext()
+    assert ctx.setup.guard_shift > 0 and ctx.probe_min > 0
+    assert reason > 0 and relres <= 1.01e-8, reason_name(reason)
+    assert re.search(r"SPD guard: on; guard shift added: [0-9.e+]+ \* D\^-1", view_text(ksp))
+
+
 def test_indefinite_m_is_reported_and_fallback_recovers(frame, indefinite_ckpt, options):
     A = frame_mat(frame)
-    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt)))
+    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt, htp_spd_guard="false")))
     reason, _, _ = solve(ksp, A, frame.b)
     ctx = ksp.getPC().getPythonContext()
     assert ctx.finite and ctx.probe_min < 0
     assert reason_name(reason) == "DIVERGED_INDEFINITE_PC"
-    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt, htp_fallback="jacobi")))
+    ksp = make_ksp(A, options(**htp_opts(indefinite_ckpt, htp_fallback="jacobi", htp_spd_guard="false")))
     reason, _, relres = solve(ksp, A, frame.b)
     assert reason > 0 and relres <= 1.01e-8
     assert "fallback: jacobi ACTIVE (Rayleigh probe found M indefinite" in view_text(ksp)
