@@ -46,8 +46,26 @@ def morton_code(ix, iy):
     return _spread_bits(x) | (_spread_bits(y) << np.uint64(1))
 
 
+def _lattice_indices(x, bits):
+    """Integer indices ``(x - min) / spacing`` when ``x`` lies on a uniform lattice, else None."""
+    u = np.unique(x)
+    if u.size < 2:
+        return np.zeros(x.size, dtype=np.int64)
+    k = (x - u[0]) / np.diff(u).min()
+    q = np.rint(k)
+    if np.abs(k - q).max() > 1e-6 or q.max() >= 2**bits:
+        return None
+    return q.astype(np.int64)
+
+
 def quantized_morton_codes(coords, bits=16):
-    """Morton codes of points quantised over their bounding box.
+    """Morton codes of points quantised to integers.
+
+    Points on a uniform lattice (cell centres of a grid, with or without
+    holes) get the codes of their integer lattice indices, so a grid's
+    cells come out in the same order as :func:`morton_code` of its cell
+    indices; other points are mapped onto ``[0, 2**bits)`` over their
+    bounding box, each axis separately.
 
     Parameters
     ----------
@@ -59,7 +77,6 @@ def quantized_morton_codes(coords, bits=16):
     Returns
     -------
     numpy.ndarray of uint64, shape (N,)
-        Codes of the points after mapping each axis onto ``[0, 2**bits)``.
     """
     pts = np.asarray(coords, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
@@ -70,6 +87,9 @@ def quantized_morton_codes(coords, bits=16):
         raise ValueError(f"bits must lie in [1, {_MAX_BITS}], got {bits}")
     if pts.shape[0] == 0:
         return np.zeros(0, dtype=np.uint64)
+    lattice = [_lattice_indices(pts[:, a], bits) for a in (0, 1)]
+    if all(q is not None for q in lattice):
+        return morton_code(*lattice)
     lo = pts.min(axis=0)
     span = pts.max(axis=0) - lo
     span[span == 0] = 1.0  # a flat axis quantises to 0

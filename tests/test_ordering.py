@@ -80,6 +80,23 @@ def test_morton_permutation_is_stable_and_validates():
         morton_permutation(coords, bits=40)
 
 
+@pytest.mark.parametrize("n", [2048, 3000])
+def test_non_square_scene_order_is_recovered_from_coordinates(n):
+    """Cell centres of a W x H grid (W != H, truncated) give the scene's integer Morton order back."""
+    from petsc_htp.scenes import make_frame
+
+    coords = make_frame(n, seed=1).coords
+    assert is_morton_sorted(coords)
+    shuffle = np.random.default_rng(0).permutation(n)
+    np.testing.assert_array_equal(shuffle[morton_permutation(coords[shuffle])], np.arange(n))
+
+
+def test_scattered_points_fall_back_to_bounding_box_quantisation():
+    pts = np.random.default_rng(1).random((200, 2))
+    codes = quantized_morton_codes(pts, bits=4)
+    assert codes.max() < 2**8 and len(np.unique(codes)) > 50
+
+
 def test_is_morton_sorted():
     _, coords, _, _ = shuffled_problem()
     assert not is_morton_sorted(coords)
