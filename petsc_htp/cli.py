@@ -1,4 +1,4 @@
-"""The ``petsc-htp`` command: scene, train, fit, bench."""
+"""The ``petsc-htp`` command: scene, train, join-logs, fit, bench."""
 from __future__ import annotations
 
 import argparse
@@ -35,6 +35,18 @@ def _train(args):
     kw["scales"] = tuple(args.scales)
     path = train(_model_config(args), TrainSettings(**kw))
     print(f"checkpoint: {path}")
+
+
+def _join_logs(args):
+    from .train import join_logs
+
+    stages = []
+    for spec in args.logs:
+        path, _, n = spec.rpartition(":")
+        if not path or not n.isdigit():
+            raise ValueError(f"stage {spec!r} must be LOG:HELDOUT_N, e.g. runs/a/train_log.jsonl:1024")
+        stages.append((path, int(n)))
+    print(f"wrote {join_logs(stages, args.out)}")
 
 
 def _fit(args):
@@ -81,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--threads", type=int, help="torch threads (1 is best on a busy machine)")
     t.add_argument("--compile", action="store_true", default=None)
     t.add_argument("--resume", action="store_true", default=None)
+    t.add_argument("--init", help="start from this checkpoint's weights (fine-tuning; fresh optimizer)")
     t.add_argument("--out")
     t.add_argument("--cache-dir", dest="cache_dir")
     for name, default in (("d", 128), ("n-layers", 3), ("leaf", 128), ("p-off", 4), ("n-gcn", 2), ("heads", 8)):
@@ -97,6 +110,11 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--leaf", type=int, default=128)
     f.add_argument("--p-off", dest="p_off", type=int, default=4)
     f.set_defaults(func=_fit)
+
+    j = sub.add_parser("join-logs", help="one training log from the logs of successive (fine-tuning) stages")
+    j.add_argument("out", help="joined log (JSONL)")
+    j.add_argument("logs", nargs="+", metavar="LOG:HELDOUT_N", help="stage logs, oldest first")
+    j.set_defaults(func=_join_logs)
 
     sub.add_parser("bench", help="benchmark every method through PETSc (see petsc-htp bench -h)", add_help=False)
     return p

@@ -26,6 +26,7 @@ class ModelInput:
     node: torch.Tensor        # (N_pad, NODE_FEATURES)
     glob: torch.Tensor        # (GLOBAL_FEATURES,)
     message: torch.Tensor     # sparse (N_pad, N_pad): D^-1 |A_offdiag|
+    leaf_xy: torch.Tensor     # (N_pad, 2) position relative to the leaf's centroid (0 without geometry)
     diag_pair: torch.Tensor   # (K, L, L, PAIR_FEATURES)
     tile_pair: torch.Tensor   # (M_H, L_s, L_s, PAIR_FEATURES)
     mask: torch.Tensor        # (N_pad,) bool, real indices
@@ -144,6 +145,11 @@ def build_input(A, part: Partition, coords=None, density=None) -> ModelInput:
     xy_p = np.zeros((Np, 2))
     xy_p[:n] = xy
     X = xy_p.reshape(K, L, 2)
+    real = np.zeros(Np)
+    real[:n] = 1.0
+    count = real.reshape(K, L).sum(1, keepdims=True)
+    centroid = X.sum(1, keepdims=True) / count[..., None]
+    leaf_xy = ((X - centroid) * scale_leaf).reshape(Np, 2) * real[:, None]
     diag_pair = np.zeros((K, L, L, PAIR_FEATURES), dtype=np.float32)
     diag_pair[..., :2] = (X[:, :, None, :] - X[:, None, :, :]) * scale_leaf
     same = (i // L) == (j // L)
@@ -178,6 +184,6 @@ def build_input(A, part: Partition, coords=None, density=None) -> ModelInput:
     inv_diag[:n] = 1.0 / d
     f32 = dict(dtype=torch.float32)
     return ModelInput(node=torch.as_tensor(node_p, **f32), glob=torch.as_tensor(glob, **f32), message=message,
-                      diag_pair=torch.from_numpy(diag_pair), tile_pair=torch.from_numpy(tile_pair),
+                      leaf_xy=torch.as_tensor(leaf_xy, **f32), diag_pair=torch.from_numpy(diag_pair), tile_pair=torch.from_numpy(tile_pair),
                       mask=torch.from_numpy(mask), tile_mask=torch.from_numpy(cnt > 0),
                       inv_diag=torch.as_tensor(inv_diag, **f32), scale=s)

@@ -176,6 +176,9 @@ class HTPNet(nn.Module):
         self.gate = nn.Linear(d, 1)
         self.shift = nn.Parameter(torch.tensor(-6.0)) if cfg.shift else None
         self.slot = nn.Parameter(0.02 * torch.randn(L, d))        # within-leaf position of a token
+        self.leaf_pos = _mlp(2, d, d)                              # geometric position within its leaf
+        nn.init.zeros_(self.leaf_pos[-1].weight)
+        nn.init.zeros_(self.leaf_pos[-1].bias)
         self.coarse_slot = nn.Parameter(0.02 * torch.randn(Ls, d))
         # Start near Jacobi + F F^T (PSD): B = U V^T is zero at first, yet U gets gradients through V.
         for head, std in ((self.leaf_head[-1], 0.3), (self.bridge_u, 0.3), (self.bridge_v, 0.3), (self.v_head, 0.3),
@@ -200,7 +203,7 @@ class HTPNet(nn.Module):
         for layer in self.gcn:
             h = layer(h, inp.message) * mask[:, None]
         hw = Highways(part, mask, inp.tile_mask)
-        xd = h.view(K, L, -1) + self.slot
+        xd = (h + self.leaf_pos(inp.leaf_xy) * mask[:, None]).view(K, L, -1) + self.slot
         xo = self.row_in(hw.pool(h, 0)) + self.col_in(hw.pool(h, 1)) + self.coarse_slot   # (M, Ls, d)
         dmask = mask.view(K, L)
         omask = inp.tile_mask[:, 1]

@@ -52,6 +52,7 @@ class TrainSettings:
     compile: bool = False
     out: str = "runs/htp"
     resume: bool = False
+    init: str | None = None
     eval_n: int = 1024
     cache_dir: str | None = None
     extra: dict = field(default_factory=dict)
@@ -160,6 +161,11 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
                                                        threshold_mode="rel", min_lr=min_lr)
     stop = AutoStop(min_lr)
     step, elapsed = 0, 0.0
+    parent = None
+    if s.init:
+        p = checkpoint.warm_start(net, s.init)
+        parent = {"path": str(s.init), "steps": p.get("steps"), "wall_s": p.get("wall_s"),
+                  "scales": p.get("scales"), "device": p.get("device"), "init": p.get("init")}
     last = untrained = evaluate(net, held, held_ctx)
     last_path = out / "last.pt"
     if s.resume and last_path.exists():
@@ -177,7 +183,8 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
         return {"distribution": s.distribution, "scales": list(s.scales), "frames": s.frames, "seed": s.seed,
                 "loss": s.loss, "steps": step, "wall_s": round(elapsed, 1), "device": str(dev),
                 "machine": platform.node(), "torch": str(torch.__version__),
-                "heldout_n": s.eval_n, "heldout": last, "heldout_untrained": untrained, "settings": asdict(s)}
+                "heldout_n": s.eval_n, "heldout": last, "heldout_untrained": untrained, "settings": asdict(s),
+                "init": parent}
 
     def save(path):
         extra = {"opt": opt.state_dict(), "sched": sched.state_dict(), "step": step, "elapsed": elapsed,
@@ -213,7 +220,7 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
             row = {"step": step, "loss": mean, "lr": lr, "wall_s": round(elapsed, 2)}
             if step % s.eval_every == 0:
                 last = evaluate(net, held, held_ctx)
-                row.update(last)
+                row.update(last, heldout_n=s.eval_n)
             log.write(json.dumps(row) + "\n")
             log.flush()
             bar.set_postfix(loss=f"{mean:.4f}", lr=f"{lr:.1e}", it=last.get("pcg_iters", "-"))
@@ -223,7 +230,38 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
             save(last_path)
     bar.close()
     last = evaluate(net, held, held_ctx)
-    log.write(json.dumps({"step": step, "final": True, "wall_s": round(elapsed, 2), **last}) + "\n")
+    log.write(json.dumps({"step": step, "final": True, "wall_s": round(elapsed, 2), **last,
+                          "heldout_n": s.eval_n}) + "\n")
     log.close()
     save(last_path)
     return checkpoint.save(out / "final.pt", net, provenance())
+
+
+def join_logs(stages, out) -> Path:
+    """One log from the logs of successive training stages (each fine-tuning the last).
+
+    Parameters
+    ----------
+    stages : list of (path, heldout_n)
+        Stage logs, oldest first, and the N of each stage's held-out frame (for rows
+        that do not record it).
+    out : path
+        Written atomically; steps and wall-clock continue across stages, every row
+        gets its ``stage`` (1-based) and evaluation rows their ``heldout_n``.
+    """
+    rows, step0, wall0 = [], 0, 0.0
+    for k, (path, heldout_n) in enumerate(stages, 1):
+        stage = [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+        if not stage:
+            raise ValueError(f"training log {path} is empty")
+        for r in stage:
+            r.update(step=r["step"] + step0, wall_s=round(r["wall_s"] + wall0, 2), stage=k)
+            if "pcg_iters" in r:
+                r.setdefault("heldout_n", int(heldout_n))
+        step0, wall0 = stage[-1]["step"], stage[-1]["wall_s"]
+        rows += stage
+    out = Path(out)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    tmp.replace(out)
+    return out

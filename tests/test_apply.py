@@ -54,3 +54,4 @@ def test_memory_and_flops_linear_in_n():
     for series in (flops, widths, buffers):
         per_n = np.array(series) / np.array(sizes)
         assert per_n.max() / per_n.min() < 1.05, series   # affine in N: no log N or N^2 term
+

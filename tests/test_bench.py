@@ -278,6 +278,10 @@ def test_trained_model_studies(env, tmp_path):
     assert "at most 2 steps and 0.5 min per model" in report
     assert "| Full / in-distribution |" in report and "| Excl. closed barriers |" in report
     assert "Smallest configuration within 10% of the fastest" in report
+    from petsc_htp.bench.readme import size_paragraph
+    from petsc_htp.bench.report import load
+    para = size_paragraph(load(out))
+    assert "**Model size**" in para and "`d=32, n_l=1, hw, cosine`" in para and "at most 2 steps" in para
     for name in ("generalization.png", "size.png", "profile.png", "spectrum.png"):
         assert (out / name).stat().st_size > 2000
 
@@ -301,3 +305,11 @@ def test_fastpath_study_runs_on_this_machine(env, tmp_path):
     assert "## 8. Fast path" in report and (out / "fastpath.png").stat().st_size > 2000
     if not torch.cuda.is_available():
         assert rows[0]["device"] == "cpu" and "ran eagerly" in report
+
+
+def test_model_card_lists_training_stages_oldest_first():
+    from petsc_htp.bench.modelcard import training_stages
+
+    prov = {"steps": 10, "scales": [2048], "init": {"steps": 500, "scales": [1024], "init": {"steps": 2608}}}
+    assert [st["steps"] for st in training_stages(prov)] == [2608, 500, 10]
+    assert training_stages({"steps": 3}) == [{"steps": 3}]

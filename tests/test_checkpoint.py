@@ -1,3 +1,5 @@
+import dataclasses
+
 import pytest
 import torch
 
@@ -40,3 +42,22 @@ def test_missing_corrupt_version_and_mismatch(tmp_path, tiny_cfg):
     torch.save(obj, tmp_path / "wrong.pt")
     with pytest.raises(CheckpointError, match="do not match"):
         checkpoint.load(tmp_path / "wrong.pt")
+
+
+def test_warm_start_copies_weights_and_keeps_new_ones(tmp_path, tiny_cfg):
+    src = HTPNet(tiny_cfg)
+    state = {k: v for k, v in src.state_dict().items() if not k.startswith("leaf_pos")}
+    obj = {"format": checkpoint.FORMAT, "version": checkpoint.VERSION, "config": tiny_cfg.to_dict(),
+           "state_dict": state, "provenance": {"steps": 7}}
+    torch.save(obj, tmp_path / "old.pt")        # a checkpoint from before leaf_pos existed
+    torch.manual_seed(1)
+    dst = HTPNet(tiny_cfg)
+    fresh = dst.leaf_pos[0].weight.clone()
+    assert checkpoint.warm_start(dst, tmp_path / "old.pt")["steps"] == 7
+    assert torch.equal(dst.slot, src.slot) and torch.equal(dst.leaf_pos[0].weight, fresh)
+    with pytest.raises(CheckpointError, match="does not match"):
+        checkpoint.warm_start(HTPNet(dataclasses.replace(tiny_cfg, d=64)), tmp_path / "old.pt")
+    obj["state_dict"]["surplus"] = torch.zeros(1)
+    torch.save(obj, tmp_path / "surplus.pt")
+    with pytest.raises(CheckpointError, match="lacks"):
+        checkpoint.warm_start(dst, tmp_path / "surplus.pt")

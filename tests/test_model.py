@@ -58,3 +58,16 @@ def test_invalid_config():
         frame = make_frame(256)
         part = HTPConfig().partition(256)
         net(build_input(frame.A, part), part)
+
+
+def test_leaf_positions_are_centred_per_leaf_and_zero_without_geometry(tiny_cfg):
+    fr = make_frame(300, seed=2)
+    part = tiny_cfg.partition(fr.n)
+    inp = build_input(fr.A, part, fr.coords, fr.rho)
+    pos = inp.leaf_xy.view(part.n_leaves, part.leaf, 2)
+    real = inp.mask.view(part.n_leaves, part.leaf)
+    assert torch.all(pos[~real] == 0)
+    sums = (pos * real[..., None]).sum(1)
+    assert torch.allclose(sums, torch.zeros_like(sums), atol=1e-4)
+    assert pos.abs().max() > 0.1
+    assert torch.all(build_input(fr.A, part).leaf_xy == 0)

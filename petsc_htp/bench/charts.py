@@ -255,37 +255,40 @@ def size_chart(res, out):
 # ----------------------------------------------------------------------- profile
 
 def profile_chart(res, out):
-    """Loss, held-out SAI loss and PCG iterations against wall-clock minutes (steps on top)."""
+    """Loss and held-out SAI loss (top), held-out PCG iterations (bottom) against wall-clock minutes."""
     rows = res.rows["profile"]
     train = [r for r in rows if r.get("kind") == "train"]
     logged = [r for r in train if "loss" in r]
     evals = [r for r in train if r.get("pcg_iters") is not None]
-    fig, ax = _figure(8, 4.2)
-    ax = ax[0, 0]
+    fig, axes = _figure(8, 6, rows=2)
+    ax, pcg = axes[0, 0], axes[1, 0]
     ax.plot([r["wall_s"] / 60 for r in logged], [r["loss"] for r in logged], color="tab:blue", label="cosine loss")
-    ax.set_xlabel("wall-clock minutes")
     ax.set_ylabel("training loss", color="tab:blue")
     sai = ax.twinx()
     sai.plot([r["wall_s"] / 60 for r in evals if r.get("sai_heldout")], [r["sai_heldout"] for r in evals
              if r.get("sai_heldout")], "g--", label="held-out SAI loss")
-    sai.set_yscale("log")
     sai.set_ylabel("held-out SAI loss", color="tab:green")
-    pcg = ax.twinx()
-    pcg.spines["right"].set_position(("axes", 1.14))
-    pcg.plot([r["wall_s"] / 60 for r in evals], [r["pcg_iters"] for r in evals], "o-", color="tab:orange",
-             ms=3, label="held-out PCG iterations")
-    for r in (r for r in rows if r.get("kind") == "baseline"):
-        pcg.axhline(r["iterations"], color="grey", ls=":", lw=1)
-        pcg.annotate(r["method"], (0.01, r["iterations"]), xycoords=("axes fraction", "data"), fontsize=7,
-                     color="grey")
-    pcg.set_yscale("log")
-    pcg.set_ylabel("PCG iterations", color="tab:orange")
-    handles = [h for a in (ax, sai, pcg) for h in a.get_lines() if not h.get_label().startswith("_")]
+    handles = [h for a in (ax, sai) for h in a.get_lines() if not h.get_label().startswith("_")]
     ax.legend(handles, [h.get_label() for h in handles], fontsize=7, loc="upper right")
     if logged:
         steps = ax.secondary_xaxis("top", functions=_minutes_to_steps(logged))
         steps.set_xlabel("optimizer steps")
     ax.set_title("Training profile")
+    sizes = sorted({r.get("heldout_n") for r in evals}, key=lambda n: n or 0)
+    for k, n in enumerate(sizes):
+        sel = [r for r in evals if r.get("heldout_n") == n]
+        pcg.plot([r["wall_s"] / 60 for r in sel], [r["pcg_iters"] for r in sel], "o-", ms=3, color=f"C{k + 1}",
+                 label="held-out PCG iterations" + (f", N={n}" if n else ""))
+    named = len(sizes) > 1 or sizes != [None]
+    for r in (r for r in rows if r.get("kind") == "baseline"):
+        pcg.axhline(r["iterations"], color="grey", ls=":", lw=1)
+        pcg.annotate(r["method"] + (f", N={r['n']}" if named else ""), (0.01, r["iterations"]),
+                     xycoords=("axes fraction", "data"), fontsize=7, color="grey", va="bottom")
+    pcg.legend(fontsize=7, loc="upper right")
+    pcg.set_yscale("log")
+    pcg.set_ylabel("PCG iterations (held-out frame)")
+    pcg.set_xlabel("wall-clock minutes")
+    pcg.sharex(ax)
     return _save(fig, out, PROFILE)
 
 

@@ -44,6 +44,15 @@ def iteration_table(rows) -> tuple[list, dict]:
     return out, verdict
 
 
+def training_stages(prov: dict) -> list:
+    """Training stages of a checkpoint, oldest first (fine-tuning runs record their parent under ``init``)."""
+    stages, node = [], prov
+    while node:
+        stages.append(node)
+        node = node.get("init")
+    return stages[::-1]
+
+
 def render(results: Path) -> str:
     """Markdown model card from a results folder (table study, meta.json, optional fit.jsonl)."""
     meta = read_json(results / "meta.json")
@@ -54,6 +63,7 @@ def render(results: Path) -> str:
     clean = all(v["failures"] == 0 for v in verdict.values())
     cfg = net.cfg
     wins = [n for n, v in verdict.items() if v["beats_bjacobi"]]
+    stages = training_stages(prov)
     lines = [
         "# Model card: `htp_default.pt`",
         "",
@@ -63,12 +73,15 @@ def render(results: Path) -> str:
         "",
         "## Provenance",
         "",
-        f"- trained on: distribution `{prov.get('distribution')}`, scales {prov.get('scales')}, "
-        f"{prov.get('frames')} frames per scale (train seeds), loss `{prov.get('loss')}`",
-        f"- {prov.get('steps')} optimizer steps, {prov.get('wall_s', 0) / 60:.0f} min on `{prov.get('device')}` "
-        f"({prov.get('machine')}, torch {prov.get('torch')})",
-        f"- settings: {json.dumps({k: prov.get('settings', {}).get(k) for k in ('lr', 'warmup', 'accum', 'geometry_free', 'seed')})}",
-        f"- held-out frame (N={prov.get('heldout_n')}) PCG iterations: untrained "
+        f"- trained on: distribution `{prov.get('distribution')}`, {prov.get('frames')} frames per scale "
+        f"(train seeds), loss `{prov.get('loss')}`, in {len(stages)} stage(s), each starting from the last:",
+        *[f"  {i + 1}. N = {st.get('scales')}: {st.get('steps')} optimizer steps, "
+          f"{(st.get('wall_s') or 0) / 60:.0f} min on `{st.get('device')}`" for i, st in enumerate(stages)],
+        f"- in all {sum(st.get('steps') or 0 for st in stages)} steps, "
+        f"{sum(st.get('wall_s') or 0 for st in stages) / 60:.0f} min ({prov.get('machine')}, torch {prov.get('torch')})",
+        f"- last stage's settings: "
+        f"{json.dumps({k: prov.get('settings', {}).get(k) for k in ('lr', 'warmup', 'accum', 'geometry_free', 'seed')})}",
+        f"- held-out frame (N={prov.get('heldout_n')}) PCG iterations: at the start of the last stage "
         f"{prov.get('heldout_untrained', {}).get('pcg_iters')}, final {prov.get('heldout', {}).get('pcg_iters')}",
         "",
         "## Held-out iterations",

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from . import charts, store
 from .methods import ROOT
-from .report import load, table4_body
+from .report import load, size_summary, size_verdict, table4_body
 
 START = "<!-- results:start -->"
 END = "<!-- results:end -->"
@@ -40,8 +40,22 @@ def block(results, readme) -> str:
         f"{m.get('device', '?')}." + (" **Quick run: CI-sized, not for comparison.**" if m.get("quick") else ""),
         "### Time per frame (paper Table 4)",
         table4_body(res, prefix=rel + "/"),
+        size_paragraph(res),
         "More charts: " + ", ".join(links) + "." if links else "",
     ]).rstrip() + "\n"
+
+
+def size_paragraph(res) -> str:
+    """The model-size verdict (Pareto front, smallest sufficient model), or '' without a size study."""
+    if "size" not in res.rows:
+        return ""
+    summ = size_summary(res.rows["size"])
+    front, enough = size_verdict(summ)
+    base = next((k for k, v in summ.items() if v["info"].get("base")), "?")
+    return (f"**Model size** (section 6 of the report; {res.meta.get('budget', {}).get('text', '?')}): "
+            f"on the Pareto front of parameters against mean total ms: {', '.join(f'`{k}`' for k in front) or '—'}; "
+            f"smallest configuration within 10 % of the fastest: `{enough or '—'}`; "
+            f"the base (shipped) configuration: `{base}`.")
 
 
 def rewrite(readme, results) -> Path:

@@ -362,8 +362,12 @@ def _train_summary(train):
     best = min(evals, key=lambda r: r["pcg_iters"]) if evals else None
     return (f"{last.get('step', 0)} steps in {last.get('wall_s', 0) / 60:.1f} min; loss "
             f"{logged[0]['loss']:.4g} → {logged[-1]['loss']:.4g}; " if logged else "no loss rows; ") + (
-        f"held-out PCG iterations {evals[0]['pcg_iters']} → {evals[-1]['pcg_iters']} "
-        f"(best {best['pcg_iters']} at step {best['step']})" if evals else "no held-out evaluations")
+        f"held-out PCG iterations {_its_at(evals[0])} → {_its_at(evals[-1])} "
+        f"(best {_its_at(best)} at step {best['step']})" if evals else "no held-out evaluations")
+
+
+def _its_at(row):
+    return f"{row['pcg_iters']}" + (f" at N={row['heldout_n']}" if row.get("heldout_n") else "")
 
 
 def profile_section(res) -> str:
@@ -372,12 +376,12 @@ def profile_section(res) -> str:
     kinds = stats.group(rows, "kind")
     source = kinds.get(("source",), [{}])[0]
     train = kinds.get(("train",), [])
-    base = {r["method"]: r["iterations"] for r in kinds.get(("baseline",), [])}
+    base = {f"{r['method']} (N={r['n']})": r["iterations"] for r in kinds.get(("baseline",), [])}
     spec = kinds.get(("spectrum",), [])
     k0 = spec[0]["kappa"] if spec else math.nan
     table = [[r["method"], sci(r["kappa"]), ratio(k0 / r["kappa"]), f"{r['eigs'][0]:.3g}", f"{r['eigs'][-1]:.3g}",
               "yes" if r["indefinite"] else "no"] for r in spec]
-    baseline = ("; baselines on the same frame: " + ", ".join(f"{k} {v} its" for k, v in base.items())) if base else ""
+    baseline = ("; baselines on the held-out frames: " + ", ".join(f"{k} {v} its" for k, v in base.items())) if base else ""
     return "\n\n".join([
         "## 7. Training profile and spectrum",
         f"Training log `{source.get('train_log', '?')}`: {_train_summary(train)}{baseline}.",

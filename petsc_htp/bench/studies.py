@@ -111,14 +111,19 @@ def _log_provenance(log_path, ckpt):
     return {}
 
 
-def _baseline_rows(prov):
-    """Unpreconditioned and Jacobi PCG iterations on the log's held-out frame (grey lines)."""
-    if not prov.get("heldout_n"):
-        return []
-    frame = cases.held_out_frames(prov["heldout_n"], 1, prov.get("distribution", "full"))[0]
-    return [{"kind": "baseline", "method": name, "n": frame.n,
-             "iterations": pcg(frame.A, frame.b, m, rtol=1e-8, maxiter=20000).iterations}
-            for name, m in (("none", None), ("jacobi", jacobi(frame.A)))]
+def _baseline_rows(train, prov):
+    """Unpreconditioned and Jacobi PCG iterations on every held-out frame of the log (grey lines).
+
+    Evaluation rows name their frame's N (``heldout_n``); older logs fall back to the provenance's.
+    """
+    sizes = sorted({r.get("heldout_n") or prov.get("heldout_n") for r in train if r.get("pcg_iters") is not None} - {None})
+    rows = []
+    for n in sizes:
+        frame = cases.held_out_frames(n, 1, prov.get("distribution", "full"))[0]
+        rows += [{"kind": "baseline", "method": name, "n": frame.n,
+                  "iterations": pcg(frame.A, frame.b, m, rtol=1e-8, maxiter=20000).iterations}
+                 for name, m in (("none", None), ("jacobi", jacobi(frame.A)))]
+    return rows
 
 
 def profile_sources(out, cfg, budget, log_path=None, ckpt=None):
@@ -138,8 +143,9 @@ def profile_rows(log_path, ckpt, spectrum_n):
     from .spectrum import spectrum_rows
 
     rows = [{"kind": "source", "train_log": str(log_path), "checkpoint": str(ckpt)}]
-    rows += [{"kind": "train", **r} for r in read_jsonl(log_path)]
-    rows += _baseline_rows(_log_provenance(log_path, ckpt))
+    train = read_jsonl(log_path)
+    rows += [{"kind": "train", **r} for r in train]
+    rows += _baseline_rows(train, _log_provenance(log_path, ckpt))
     frame = cases.held_out_frames(spectrum_n, 1)[0]
     rows += [{"kind": "spectrum", **r} for r in spectrum_rows(frame, HTP.load(ckpt, device="cpu"))]
     return _tag(rows, study="profile")

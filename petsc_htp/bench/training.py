@@ -22,11 +22,14 @@ class Budget:
     log_every: int
     eval_every: int
     device: str = "cpu"
+    lr: float = 5e-4
+    warmup: int = 50
 
     def describe(self) -> str:
         """One line for the report."""
         limit = f"{self.minutes:g} min" if self.minutes else "no time limit"
         return (f"at most {self.steps} steps and {limit} per model (auto-stop may end it sooner), "
+                f"lr {self.lr:g} after {self.warmup} warm-up steps, "
                 f"{self.frames} training frames per scale at N = {', '.join(map(str, self.scales))}, "
                 f"device {self.device}")
 
@@ -62,7 +65,8 @@ def trained_checkpoint(out, cfg, distribution, loss, budget) -> Path:
     settings = TrainSettings(scales=tuple(budget.scales), distribution=distribution, frames=budget.frames,
                              loss=loss, max_steps=budget.steps, max_minutes=budget.minutes,
                              log_every=budget.log_every, eval_every=budget.eval_every,
-                             ckpt_every=budget.steps, device=budget.device, out=str(folder), eval_n=budget.eval_n)
+                             ckpt_every=budget.steps, device=budget.device, out=str(folder), eval_n=budget.eval_n,
+                             lr=budget.lr, warmup=budget.warmup)
     path = train(cfg, settings)
     store.write_json(stamp, wanted)
     return Path(path)
