@@ -265,21 +265,23 @@ def profile_chart(res, out):
     ax.plot([r["wall_s"] / 60 for r in logged], [r["loss"] for r in logged], color="tab:blue", label="cosine loss")
     ax.set_ylabel("training loss", color="tab:blue")
     sai = ax.twinx()
-    sai.plot([r["wall_s"] / 60 for r in evals if r.get("sai_heldout")], [r["sai_heldout"] for r in evals
-             if r.get("sai_heldout")], "g--", label="held-out SAI loss")
-    sai.set_ylabel("held-out SAI loss", color="tab:green")
+    sizes = sorted({r.get("heldout_n") for r in evals}, key=lambda n: n or 0)
+    named = len(sizes) > 1 or sizes != [None]
+    for k, n in enumerate(sizes):
+        sel = [r for r in evals if r.get("heldout_n") == n and r.get("sai_heldout")]
+        sai.plot([r["wall_s"] / 60 for r in sel], [r["sai_heldout"] for r in sel], "--", color=f"C{k + 1}",
+                 label="held-out SAI loss" + (f", N={n}" if named else ""))
+    sai.set_ylabel("held-out SAI loss (dashed)")
     handles = [h for a in (ax, sai) for h in a.get_lines() if not h.get_label().startswith("_")]
     ax.legend(handles, [h.get_label() for h in handles], fontsize=7, loc="upper right")
     if logged:
         steps = ax.secondary_xaxis("top", functions=_minutes_to_steps(logged))
         steps.set_xlabel("optimizer steps")
     ax.set_title("Training profile")
-    sizes = sorted({r.get("heldout_n") for r in evals}, key=lambda n: n or 0)
     for k, n in enumerate(sizes):
         sel = [r for r in evals if r.get("heldout_n") == n]
         pcg.plot([r["wall_s"] / 60 for r in sel], [r["pcg_iters"] for r in sel], "o-", ms=3, color=f"C{k + 1}",
-                 label="held-out PCG iterations" + (f", N={n}" if n else ""))
-    named = len(sizes) > 1 or sizes != [None]
+                 label="held-out PCG iterations" + (f", N={n}" if named else ""))
     for r in (r for r in rows if r.get("kind") == "baseline"):
         pcg.axhline(r["iterations"], color="grey", ls=":", lw=1)
         pcg.annotate(r["method"] + (f", N={r['n']}" if named else ""), (0.01, r["iterations"]),

@@ -110,8 +110,10 @@ def render(results: Path) -> str:
     if fit.exists():
         fits = [json.loads(x) for x in fit.read_text().splitlines() if x.startswith("{")]
         lines += ["", "## Structure check (`petsc-htp fit`)", "",
-                  "The packed factors of one held-out frame fitted directly with the same loss (no network): "
-                  "what the HTP structure itself reaches, separately from how well the network learns it.", "",
+                  "The packed factors of one held-out frame fitted directly with the same loss (no network) "
+                  "for the listed Adam steps: what the HTP structure itself reaches, separately from how well "
+                  "the network learns it. The fit is not run to convergence, so these are upper bounds on the "
+                  "structure's best iteration counts.", "",
                   md_table(["N", "fit steps", "fitted HTP its", "Jacobi its", "ratio"],
                            [[n_label(f["n"]), f["steps"], f["iterations"], f["jacobi_iterations"],
                              f"{f['ratio_vs_jacobi']:.2f}"] for f in fits])]
