@@ -157,9 +157,9 @@ class HTPNet(nn.Module):
     """Hierarchical Transformer Preconditioner network.
 
     Additions to the paper's design: a learned embedding of each token's slot within its
-    leaf (and strip), an MLP of its position relative to the leaf's centroid (zero without
-    geometry; zero-initialised, so a warm start from weights without it keeps their M), and factor rows emitted for
-    D^-1/2 A D^-1/2 and scaled back (M = D^-1/2 M^ D^-1/2).
+    leaf (and strip); an MLP of its position relative to the leaf's centroid (zero without
+    geometry; zero-initialised, so a warm start from weights without it keeps their M);
+    factor rows emitted for D^-1/2 A D^-1/2 and scaled back (M = D^-1/2 M^ D^-1/2).
     """
 
     def __init__(self, cfg: HTPConfig = HTPConfig()):
