@@ -58,9 +58,15 @@ class Setup:
         return bool(torch.isfinite(self.op.packed).all())
 
     def min_scaled_eigenvalue(self, diag: np.ndarray, seed: int = 0) -> float:
-        """Smallest eigenvalue of D^1/2 M D^1/2 to 1 % by Lanczos (20 to 100 applies; HTP ordering)."""
-        sd = np.sqrt(diag)
-        return smallest_ritz_value(lambda v: sd * self.op.apply(sd * v), self.n, seed=seed)
+        """Smallest eigenvalue of D^1/2 M D^1/2 to 1 % by Lanczos on M's device (20 to 100 applies)."""
+        op, n = self.op, self.n
+        sd = torch.as_tensor(np.sqrt(diag), dtype=op.r.dtype, device=op.r.device)
+
+        def scaled(v):
+            op.r[:n, 0] = sd * v
+            return sd * op.apply_()[:n, 0]
+
+        return smallest_ritz_value(scaled, n, seed=seed, dtype=op.r.dtype, device=op.r.device)
 
     def min_rayleigh(self, probes: int = 8, seed: int = 0) -> float:
         """Smallest Rayleigh quotient r^T M r / r^T r over random probes (< 0 proves M indefinite)."""
@@ -72,17 +78,18 @@ class Setup:
         return min(vals)
 
 
-def smallest_ritz_value(matvec, n: int, max_steps: int = 100, rtol: float = 1e-2, seed: int = 0) -> float:
+def smallest_ritz_value(matvec, n: int, max_steps: int = 100, rtol: float = 1e-2, seed: int = 0,
+                        dtype=torch.float64, device="cpu") -> float:
     """Smallest eigenvalue of a symmetric operator by Lanczos with full reorthogonalisation.
 
-    Stops once the smallest Ritz value's residual bound ``beta_j |s_j|`` is below ``rtol``
-    times its magnitude (checked every 10 steps from step 20), after ``max_steps`` steps, or
-    on an invariant subspace. Ritz values lie inside the spectrum.
+    Runs on the operator's device; the host sees only the tridiagonal coefficients, every
+    10 steps from step 20, where it stops once the smallest Ritz value's residual bound
+    ``beta_j |s_j|`` is below ``rtol`` times its magnitude. Ritz values lie inside the spectrum.
 
     Parameters
     ----------
     matvec : callable
-        ``v -> A v`` for float64 vectors of length ``n``.
+        ``v -> A v`` for torch vectors of length ``n`` (``dtype`` on ``device``).
     n : int
         Operator size.
     max_steps : int
@@ -91,25 +98,31 @@ def smallest_ritz_value(matvec, n: int, max_steps: int = 100, rtol: float = 1e-2
         Relative accuracy of the returned value.
     seed : int
         Seed of the random start vector.
+    dtype, device
+        Where the Lanczos vectors live.
     """
     steps = min(max_steps, n)
-    V = np.zeros((steps + 1, n))
-    alpha, beta = np.zeros(steps), np.zeros(steps)
-    v = np.random.default_rng(seed).standard_normal(n)
-    V[0] = v / np.linalg.norm(v)
+    V = torch.zeros(steps + 1, n, dtype=dtype, device=device)
+    alpha = torch.zeros(steps, dtype=dtype, device=device)
+    beta = torch.zeros_like(alpha)
+    v = torch.as_tensor(np.random.default_rng(seed).standard_normal(n), dtype=dtype, device=device)
+    V[0] = v / torch.linalg.vector_norm(v)
     for j in range(steps):
         w = matvec(V[j])
         alpha[j] = V[j] @ w
         for _ in range(2):                                  # twice is enough (Kahan)
-            w -= V[:j + 1].T @ (V[:j + 1] @ w)
-        beta[j] = np.linalg.norm(w)
-        k = j + 1
-        if beta[j] <= 1e-12 * abs(alpha[:k]).max():        # invariant subspace: T is exact
-            return float(_tridiagonal_eig(alpha[:k], beta[:k - 1])[0][0])
+            w = w - V[:j + 1].T @ (V[:j + 1] @ w)
+        beta[j] = torch.linalg.vector_norm(w)
         V[j + 1] = w / beta[j]
+        k = j + 1
         if k == steps or (k >= 20 and k % 10 == 0):
-            theta, s = _tridiagonal_eig(alpha[:k], beta[:k - 1])
-            if k == steps or beta[j] * abs(s[-1, 0]) <= rtol * abs(theta[0]):
+            a, b = alpha[:k].double().cpu().numpy(), beta[:k].double().cpu().numpy()
+            tiny = np.flatnonzero(~(b > 1e-6 * np.nanmax(np.abs(a))))
+            if tiny.size:                                   # invariant subspace: T is exact there
+                m = tiny[0] + 1
+                return float(_tridiagonal_eig(a[:m], b[:m - 1])[0][0])
+            theta, s_ = _tridiagonal_eig(a, b[:-1])
+            if k == steps or b[-1] * abs(s_[-1, 0]) <= rtol * abs(theta[0]):
                 return float(theta[0])
     raise AssertionError("unreachable")
 
