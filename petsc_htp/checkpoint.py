@@ -1,12 +1,11 @@
 """Checkpoints: weights + configuration + provenance + a format version, written atomically."""
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import torch
 
+from .atomic import atomic_open
 from .model import HTPConfig, HTPNet
 
 FORMAT = "petsc_htp-checkpoint"
@@ -20,17 +19,9 @@ class CheckpointError(ValueError):
 
 def atomic_save(obj, path) -> Path:
     """torch.save to a temporary file in the target folder, then rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    os.close(fd)
-    try:
-        torch.save(obj, tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    with atomic_open(path, "wb") as fh:
+        torch.save(obj, fh)
+    return Path(path)
 
 
 def save(path, net: HTPNet, provenance: dict, extra: dict | None = None) -> Path:

@@ -145,11 +145,10 @@ def build_input(A, part: Partition, coords=None, density=None) -> ModelInput:
     xy_p = np.zeros((Np, 2))
     xy_p[:n] = xy
     X = xy_p.reshape(K, L, 2)
-    real = np.zeros(Np)
-    real[:n] = 1.0
-    count = real.reshape(K, L).sum(1, keepdims=True)
-    centroid = X.sum(1, keepdims=True) / count[..., None]
-    leaf_xy = ((X - centroid) * scale_leaf).reshape(Np, 2) * real[:, None]
+    mask = np.zeros(Np, dtype=bool)
+    mask[:n] = True
+    centroid = X.sum(1, keepdims=True) / mask.reshape(K, L, 1).sum(1, keepdims=True)
+    leaf_xy = ((X - centroid) * scale_leaf).reshape(Np, 2) * mask[:, None]
     diag_pair = np.zeros((K, L, L, PAIR_FEATURES), dtype=np.float32)
     diag_pair[..., :2] = (X[:, :, None, :] - X[:, None, :, :]) * scale_leaf
     same = (i // L) == (j // L)
@@ -158,8 +157,6 @@ def build_input(A, part: Partition, coords=None, density=None) -> ModelInput:
 
     # Tile pair descriptors: centroid offsets and coupling between sub-strips.
     ranges = strip_tokens(part)
-    mask = np.zeros(Np, dtype=bool)
-    mask[:n] = True
     csum = np.concatenate([[0], np.cumsum(mask)])
     cxy = np.concatenate([np.zeros((1, 2)), np.cumsum(xy_p * mask[:, None], axis=0)])
     cnt = csum[ranges[..., 1]] - csum[ranges[..., 0]]           # (M, 2, Ls)
@@ -184,6 +181,7 @@ def build_input(A, part: Partition, coords=None, density=None) -> ModelInput:
     inv_diag[:n] = 1.0 / d
     f32 = dict(dtype=torch.float32)
     return ModelInput(node=torch.as_tensor(node_p, **f32), glob=torch.as_tensor(glob, **f32), message=message,
-                      leaf_xy=torch.as_tensor(leaf_xy, **f32), diag_pair=torch.from_numpy(diag_pair), tile_pair=torch.from_numpy(tile_pair),
+                      leaf_xy=torch.as_tensor(leaf_xy, **f32), diag_pair=torch.from_numpy(diag_pair),
+                      tile_pair=torch.from_numpy(tile_pair),
                       mask=torch.from_numpy(mask), tile_mask=torch.from_numpy(cnt > 0),
                       inv_diag=torch.as_tensor(inv_diag, **f32), scale=s)

@@ -5,12 +5,10 @@ Benchmark Generation"): cell-centred grids in Morton order, light fluid with
 heavy barriers, a harmonic-mean 5-point Laplacian with zero-flux boundaries,
 and cached train/test datasets.
 """
-import contextlib
 import json
 import math
 import numbers
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from .atomic import atomic_open
 from .morton import morton_code
 
 GENERATOR_VERSION = "multiphase-poisson-1"
@@ -503,23 +502,6 @@ def default_cache_dir():
     return Path(os.environ.get("PETSC_HTP_CACHE") or Path.home() / ".cache" / "petsc_htp")
 
 
-@contextlib.contextmanager
-def _atomic_write(path):
-    """Yield a binary temp file beside ``path``; move it onto ``path`` on success."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            yield handle
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
 def _frames_to_arrays(frames, key):
     """Flatten a non-empty list of same-size frames into cache-file arrays."""
     return {
@@ -608,7 +590,7 @@ def load_dataset(n, split="train", distribution="full", count=None, cache_dir=No
 
 def save_frames(frames, path, key="frames"):
     """Write same-size frames to one .npz file atomically (readable by :func:`load_frames`)."""
-    with _atomic_write(path) as handle:
+    with atomic_open(path, "wb") as handle:
         np.savez(handle, **_frames_to_arrays(frames, key))
 
 
@@ -700,5 +682,5 @@ def plot_frame(frame, path, pressure=None):
         _show(fig, axes[2], p, "pressure, velocity -grad(p)/rho", cmap="coolwarm")
         _draw_velocity(axes[2], p, rho)
     fig.tight_layout()
-    with _atomic_write(path) as handle:
+    with atomic_open(path, "wb") as handle:
         fig.savefig(handle, format="png", dpi=100)

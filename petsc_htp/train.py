@@ -19,6 +19,7 @@ import torch
 from tqdm import tqdm
 
 from . import checkpoint
+from .atomic import write_text
 from .apply import Factors, HTPOperator, TreeIndex, htp_apply
 from .features import build_input
 from .loss import cosine_loss, n_probes, sai_loss, smoothed_probes
@@ -260,8 +261,4 @@ def join_logs(stages, out) -> Path:
                 r.setdefault("heldout_n", int(heldout_n))
         step0, wall0 = stage[-1]["step"], stage[-1]["wall_s"]
         rows += stage
-    out = Path(out)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text("".join(json.dumps(r) + "\n" for r in rows))
-    tmp.replace(out)
-    return out
+    return write_text(out, "".join(json.dumps(r) + "\n" for r in rows))

@@ -2,7 +2,6 @@ import dataclasses
 import json
 
 import pytest
-import torch
 
 from petsc_htp import checkpoint
 from petsc_htp.model import HTPConfig

@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 
-from . import stats, store
+from ..atomic import atomic_open
+from . import stats
 
 TABLE = "table4.png"
 CURVE_SUMMARY = "curves_summary.png"
@@ -34,7 +35,7 @@ def _figure(w, h, rows=1, cols=1):
 
 def _save(fig, out, name):
     fig.tight_layout()
-    with store.atomic_open(f"{out}/{name}", "wb") as fh:
+    with atomic_open(f"{out}/{name}", "wb") as fh:
         fig.savefig(fh, format="png", dpi=110)
     return name
 

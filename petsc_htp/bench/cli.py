@@ -11,7 +11,8 @@ import time
 from pathlib import Path
 
 from . import store
-from .methods import DEFAULT_METHODS, ROOT, resolve_methods
+from ..options import ROOT
+from .methods import DEFAULT_METHODS, resolve_methods
 
 FULL = dict(scales=[1024, 2048, 4096, 8192, 16384], frames=20, stress_n=4096, stress_frames=3, large_n=65536,
             odd_n=3000, gen_n=4096, gen_frames=20, train_minutes=15.0, train_steps=100_000,

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..options import OPTIONS_DIR, ROOT  # noqa: F401  (ROOT re-exported for the bench)
+from ..options import OPTIONS_DIR
 PYAMG = "pyamg"
 DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", PYAMG)
 

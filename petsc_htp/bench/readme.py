@@ -5,8 +5,8 @@ import os
 from pathlib import Path
 
 from . import charts, store
-from .methods import ROOT
-from .report import load, size_summary, size_verdict, table4_body
+from ..options import ROOT
+from .report import NEAR_BEST, load, size_summary, size_verdict, table4_body
 
 START = "<!-- results:start -->"
 END = "<!-- results:end -->"
@@ -54,7 +54,7 @@ def size_paragraph(res) -> str:
     base = next((k for k, v in summ.items() if v["info"].get("base")), "?")
     return (f"**Model size** (section 6 of the report; {res.meta.get('budget', {}).get('text', '?')}): "
             f"on the Pareto front of parameters against mean total ms: {', '.join(f'`{k}`' for k in front) or '—'}; "
-            f"smallest configuration within 10 % of the fastest: `{enough or '—'}`; "
+            f"smallest configuration within {NEAR_BEST:.0%} of the fastest: `{enough or '—'}`; "
             f"the base (shipped) configuration: `{base}`.")
 
 

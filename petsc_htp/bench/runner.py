@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import re
 import time
-from pathlib import Path
 
 import numpy as np
 from petsc4py import PETSc

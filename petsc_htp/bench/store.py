@@ -1,36 +1,19 @@
 """Result files of a benchmark folder, every one written atomically (temp file + os.replace)."""
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from ..atomic import write_text
 
 META = "meta.json"
 REPORT = "report.md"
 CHEAP = ("table", "curves", "scaling", "stability")
 TRAINED = ("generalization", "size", "profile")
 STUDIES = CHEAP + TRAINED + ("fastpath",)
-
-
-@contextlib.contextmanager
-def atomic_open(path, mode="w"):
-    """Yield a temp file beside ``path``; it replaces ``path`` only if the block succeeds."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, mode) as handle:
-            yield handle
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
 
 
 def clean(value):
@@ -46,12 +29,6 @@ def clean(value):
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
-
-
-def write_text(path, text):
-    """Write ``text`` to ``path`` atomically."""
-    with atomic_open(path) as fh:
-        fh.write(text)
 
 
 def write_json(path, obj):

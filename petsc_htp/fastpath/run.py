@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 
 import torch
 
+from ..atomic import write_text
 from ..inference import HTP
 from .inference_graph import capture_inference
 from .preconditioners import METHODS, make_preconditioner
@@ -62,15 +61,7 @@ def run_fastpath(frames, methods=METHODS, htp=None, device="auto", check_every=8
 
 def write_jsonl(rows, path):
     """Write rows as JSON lines atomically (temporary file, then rename)."""
-    path = os.path.abspath(path)
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=os.path.basename(path), suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.writelines(json.dumps(row) + "\n" for row in rows)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    write_text(path, "".join(json.dumps(row) + "\n" for row in rows))
 
 
 def main(argv=None) -> int:
