@@ -44,7 +44,7 @@ $(STAMP): pyproject.toml | system
 	$(PIP) install -q --no-build-isolation petsc4py==$(PETSC_VERSION)
 	$(PIP) install -q --no-binary mpi4py mpi4py
 	$(PIP) install -q torch==$(TORCH_VERSION)
-	$(PIP) install -q -e '.[petsc,dev]'
+	$(PIP) install -q -e '.[bench,dev]'
 	@touch $(STAMP)
 	@echo "[setup] done"
 

@@ -9,7 +9,9 @@ from pathlib import Path
 
 
 def _scene(args):
-    from .scenes import frame_summary, make_frame, plot_frame, save_frames
+    from .dataset import save_frames
+    from .sceneplot import plot_frame
+    from .scenes import frame_summary, make_frame
 
     frame = make_frame(args.n, seed=args.seed, distribution=args.distribution,
                        contrast=tuple(args.contrast) if args.contrast else None, rhs=args.rhs)

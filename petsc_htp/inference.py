@@ -3,21 +3,33 @@
     htp = HTP.load()                         # the shipped checkpoint
     pre = htp.setup(A, coords=xy)            # ordering, partition, network, factors
     y = pre.apply(r)                         # y = M r, float64 in and out
+
+Setup comes in two steps, like a sparse direct solver's symbolic and numeric
+factorisations: :meth:`HTP.analyse` (ordering, partition, structural features;
+once per nonzero pattern and geometry) and :meth:`HTP.numeric` (network and
+factors; on every change of values)::
+
+    ana = htp.analyse(A, coords=xy)          # once
+    pre = htp.numeric(ana, A, density=rho)   # every frame, new values
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 import torch
 
 from . import checkpoint
+from .checks import probe_reason
 from .apply import HTPOperator
-from .features import build_input
+from .features import InputStructure, input_structure, input_values
 from .model import HTPNet
-from .ordering import choose_ordering
+from .ordering import choose_ordering, permuted_pattern
+from .partition import Partition
 
 
 def resolve_device(device: str = "auto") -> torch.device:
@@ -32,12 +44,63 @@ def resolve_device(device: str = "auto") -> torch.device:
 
 
 @dataclass
-class Setup:
-    """An HTP preconditioner bound to one operator."""
+class Analysis:
+    """The per-pattern half of an HTP setup: ordering, partition and structural features.
 
-    op: HTPOperator
+    Attributes
+    ----------
+    perm : numpy.ndarray
+        ``A[perm][:, perm]`` is the operator HTP works on.
+    ordering : str
+        The ordering's name.
+    part : Partition
+        The partition for N.
+    structure : InputStructure
+        Pattern and geometry features.
+    indptr, indices : numpy.ndarray
+        The analysed pattern in the caller's order.
+    data_map : numpy.ndarray
+        Permuted values are ``A.data[data_map]``.
+    permuted_indptr : numpy.ndarray
+        Row pointers of the permuted pattern.
+    analysis_ms : float
+        Wall time of the analysis.
+    """
+
     perm: np.ndarray
     ordering: str
+    part: Partition
+    structure: InputStructure
+    indptr: np.ndarray
+    indices: np.ndarray
+    data_map: np.ndarray
+    permuted_indptr: np.ndarray
+    analysis_ms: float
+
+    @property
+    def n(self) -> int:
+        """Problem size N."""
+        return self.part.n
+
+    def same_pattern(self, A) -> bool:
+        """True when CSR ``A`` has exactly the analysed nonzero pattern."""
+        return (A.shape == (self.n, self.n) and np.array_equal(A.indptr, self.indptr)
+                and np.array_equal(A.indices, self.indices))
+
+    def permuted(self, A) -> sp.csr_matrix:
+        """``A[perm][:, perm]`` for a matrix with the analysed pattern (a gather of its values)."""
+        if not self.same_pattern(A):
+            raise ValueError(f"the operator's nonzero pattern (N={A.shape[0]}, {A.nnz} entries) differs from "
+                             f"the analysed one (N={self.n}, {self.indices.size} entries); analyse it again")
+        return sp.csr_matrix((A.data[self.data_map], self.structure.cols, self.permuted_indptr), shape=A.shape)
+
+
+@dataclass
+class Setup:
+    """An HTP preconditioner bound to one operator (the numeric half of a setup)."""
+
+    op: HTPOperator
+    analysis: Analysis
     setup_ms: float
     shift: float
     guard_shift: float = 0.0
@@ -46,6 +109,39 @@ class Setup:
     def n(self) -> int:
         """Problem size N."""
         return self.op.part.n
+
+    @property
+    def perm(self) -> np.ndarray:
+        """The analysis' permutation."""
+        return self.analysis.perm
+
+    @property
+    def ordering(self) -> str:
+        """The analysis' ordering name."""
+        return self.analysis.ordering
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the factors."""
+        return self.op.nbytes
+
+    def describe(self) -> list:
+        """Short lines for ``-ksp_view``: partition, memory, ordering, guard, times."""
+        part = self.op.part
+        return [f"operator: N={part.n}, L={part.leaf}, K={part.n_leaves} leaves, M_H={part.n_tiles} tiles; "
+                f"factor memory {self.op.nbytes / 2**20:.2f} MB ({self.op.nbytes / part.n:.0f} bytes per unknown)",
+                f"ordering: {self.ordering}; shift: {self.shift:g}; SPD guard shift added: "
+                f"{self.guard_shift:.3g} * D^-1",
+                "apply: float32 (M is linear only to about 1e-7: use CG or FGMRES, not plain GMRES, "
+                "below rtol 1e-6)",
+                f"setup: analysis {self.analysis.analysis_ms:.1f} ms (once per pattern), "
+                f"numeric {self.setup_ms:.1f} ms (network, factors, guard)"]
+
+    def check(self, probes: int) -> str:
+        """Empty when M looks usable, else the reason: non-finite factors or apply, or M indefinite."""
+        if not self.factors_finite():
+            return "HTP factors are not finite (NaN/Inf)"
+        return probe_reason(self.apply, self.n, probes, "HTP")
 
     def apply(self, r: np.ndarray) -> np.ndarray:
         """Return M r in the caller's ordering (float64)."""
@@ -67,16 +163,6 @@ class Setup:
             return sd * op.apply_()[:n, 0]
 
         return smallest_ritz_value(scaled, n, seed=seed, dtype=op.r.dtype, device=op.r.device)
-
-    def min_rayleigh(self, probes: int = 8, seed: int = 0) -> float:
-        """Smallest Rayleigh quotient r^T M r / r^T r over random probes (< 0 proves M indefinite)."""
-        rng = np.random.default_rng(seed)
-        vals = []
-        for _ in range(probes):
-            r = rng.standard_normal(self.n)
-            vals.append(float(r @ self.apply(r) / (r @ r)))
-        return min(vals)
-
 
 def smallest_ritz_value(matvec, n: int, max_steps: int = 100, rtol: float = 1e-2, seed: int = 0,
                         dtype=torch.float64, device="cpu") -> float:
@@ -131,6 +217,9 @@ def _tridiagonal_eig(alpha, beta):
     return np.linalg.eigh(np.diag(alpha) + np.diag(beta, 1) + np.diag(beta, -1))
 
 
+_CACHE = {}          # (checkpoint path, mtime, size, device) -> HTP
+
+
 class HTP:
     """A loaded HTP network ready to build preconditioners for any N."""
 
@@ -147,38 +236,85 @@ class HTP:
         net, prov = checkpoint.load(path)
         return cls(net, prov, device, threads)
 
-    @torch.no_grad()
-    def setup(self, A, coords=None, density=None, ordering="auto", shift: float = 0.0,
-              spd_guard: bool = True) -> Setup:
-        """Order, partition, run the network and bind the factors to ``A``.
+    @classmethod
+    def cached(cls, path=None, device="auto") -> "HTP":
+        """Load ``path`` on ``device`` once per process (until the file changes); shared by callers."""
+        path = Path(path).expanduser().resolve() if path else checkpoint.DEFAULT
+        try:
+            st = os.stat(path)
+        except OSError:
+            raise checkpoint.CheckpointError(f"checkpoint {path} does not exist or cannot be read") from None
+        key = (str(path), st.st_mtime_ns, st.st_size, str(resolve_device(device)))
+        if key not in _CACHE:
+            if len(_CACHE) >= 8:
+                _CACHE.pop(next(iter(_CACHE)))
+            _CACHE[key] = cls.load(path, device=key[3])
+        return _CACHE[key]
+
+    def analyse(self, A, coords=None, ordering="auto") -> Analysis:
+        """The per-pattern step: ordering, partition and structural features of ``A``.
 
         Parameters
         ----------
         A : scipy sparse (N, N)
-        coords, density : optional per-row geometry and density (caller's ordering)
+            Only its nonzero pattern is used.
+        coords : optional (N, 2) per-row coordinates (caller's ordering)
         ordering : auto, morton, rcm or natural
-        shift : extra diagonal term ``shift * D^-1`` added to M (SPD safety margin)
-        spd_guard : estimate the most negative eigenvalue of D^1/2 M D^1/2 by Lanczos and, when
-            it is negative, add ``1.2 |lambda_min| D^-1`` so that M is SPD (``Setup.guard_shift``)
         """
         t0 = time.perf_counter()
         A = sp.csr_matrix(A)
-        n = A.shape[0]
+        A.sum_duplicates()
         perm, name = choose_ordering(A, coords, ordering)
-        Ap = A[perm][:, perm]
-        part = self.net.cfg.partition(n)
-        inp = build_input(Ap, part, None if coords is None else np.asarray(coords)[perm],
-                          None if density is None else np.asarray(density)[perm]).to(self.device)
+        Ap, data_map = permuted_pattern(A, perm)
+        part = self.net.cfg.partition(A.shape[0])
+        st = input_structure(Ap, part, None if coords is None else np.asarray(coords)[perm])
+        return Analysis(perm, name, part, st, A.indptr.copy(), A.indices.copy(), data_map, Ap.indptr,
+                        1e3 * (time.perf_counter() - t0))
+
+    @torch.no_grad()
+    def numeric(self, analysis: Analysis, A, density=None, shift: float = 0.0, spd_guard: bool = True,
+                into: Setup | None = None) -> Setup:
+        """The per-values step: run the network on ``A``'s values and bind the factors.
+
+        Parameters
+        ----------
+        analysis : Analysis
+            From :meth:`analyse` on ``A``'s pattern.
+        A : scipy sparse (N, N)
+            The operator (same pattern as analysed).
+        density : optional (N,) per-row density (caller's ordering)
+        shift : extra diagonal term ``shift * D^-1`` added to M (SPD safety margin)
+        spd_guard : estimate the most negative eigenvalue of D^1/2 M D^1/2 by Lanczos and, when
+            it is negative, add ``1.2 |lambda_min| D^-1`` so that M is SPD (``Setup.guard_shift``)
+        into : Setup, optional
+            A previous setup of this analysis whose buffers are reused (its factors are replaced).
+        """
+        t0 = time.perf_counter()
+        A = sp.csr_matrix(A)
+        A.sum_duplicates()
+        Ap = analysis.permuted(A)
+        part = analysis.part
+        inp = input_values(analysis.structure, Ap,
+                           None if density is None else np.asarray(density)[analysis.perm]).to(self.device)
         packed = self.net(inp, part)
         if shift:
             packed[-part.n_pad:] += shift * inp.inv_diag
-        pre = Setup(HTPOperator(packed, part), perm, name, 0.0, shift)
-        if spd_guard and n > 1 and pre.factors_finite():
+        if into is not None and into.analysis is analysis:
+            into.op.load_(packed)
+            pre, into.shift, into.guard_shift = into, shift, 0.0
+        else:
+            pre = Setup(HTPOperator(packed, part), analysis, 0.0, shift)
+        if spd_guard and part.n > 1 and pre.factors_finite():
             lam = pre.min_scaled_eigenvalue(Ap.diagonal())
             if lam < 0:
                 pre.guard_shift = 1.2 * -lam
-                packed[-part.n_pad:] += pre.guard_shift * inp.inv_diag
+                pre.op.f.g.add_(pre.guard_shift * inp.inv_diag)
         if self.device.type == "cuda":
             torch.cuda.synchronize()
         pre.setup_ms = 1e3 * (time.perf_counter() - t0)
         return pre
+
+    def setup(self, A, coords=None, density=None, ordering="auto", shift: float = 0.0,
+              spd_guard: bool = True) -> Setup:
+        """Both steps at once: :meth:`analyse` then :meth:`numeric` (see them for the parameters)."""
+        return self.numeric(self.analyse(A, coords, ordering), A, density, shift, spd_guard)

@@ -80,3 +80,24 @@ def choose_ordering(A, coords=None, method="auto"):
     if method == "auto" and is_morton_sorted(pts):
         return np.arange(n, dtype=np.int64), "morton (given)"
     return morton_permutation(pts), "morton"
+
+
+def permuted_pattern(A, perm):
+    """``A[perm][:, perm]`` with sorted indices, and where each of its entries sits in ``A.data``.
+
+    Returns
+    -------
+    Ap : scipy.sparse.csr_matrix
+        The permuted matrix.
+    data_map : numpy.ndarray of int64
+        ``Ap.data == A.data[data_map]``: a later matrix with ``A``'s pattern is permuted by
+        this gather alone.
+    """
+    A = _check_square(A)
+    if not A.has_canonical_format:
+        raise ValueError("A must be in canonical CSR form (sorted indices, no duplicates)")
+    ids = sp.csr_matrix((np.arange(1, A.nnz + 1, dtype=np.float64), A.indices, A.indptr), shape=A.shape)
+    P = ids[perm][:, perm]                    # ids start at 1: no entry is an explicit zero
+    P.sort_indices()
+    data_map = P.data.astype(np.int64) - 1
+    return sp.csr_matrix((A.data[data_map], P.indices, P.indptr), shape=A.shape), data_map

@@ -2,31 +2,24 @@
 
 Implements the scene generator of the paper supplement ("Multiphase Poisson
 Benchmark Generation"): cell-centred grids in Morton order, light fluid with
-heavy barriers, a harmonic-mean 5-point Laplacian with zero-flux boundaries,
-and cached train/test datasets.
+heavy barriers, a harmonic-mean 5-point Laplacian with zero-flux boundaries.
+Cached datasets are in :mod:`petsc_htp.dataset`, pictures in
+:mod:`petsc_htp.sceneplot`, PETSc Mat/Vec copies in :mod:`petsc_htp.petscmat`.
 """
-import json
 import math
 import numbers
-import os
-import zipfile
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
 
-from .atomic import atomic_open
 from .morton import morton_code
 
 GENERATOR_VERSION = "multiphase-poisson-1"
 TOPOLOGIES = ("top", "bottom", "middle_hole", "closed")
 ORIENTATIONS = ("vertical", "horizontal")
 RHS_KINDS = ("random", "buoyancy")
-TEST_SEED_OFFSET = 1_000_000
-SPLIT_SEED_OFFSETS = {"train": 0, "test": TEST_SEED_OFFSET}
-DEFAULT_COUNTS = {"train": 100, "test": 20}
 DENSITY_NOISE = 0.05
 
 
@@ -70,12 +63,6 @@ def _check_distribution(name):
         known = ", ".join(DISTRIBUTIONS)
         raise ValueError(f"unknown distribution {name!r}; known distributions: {known}")
     return DISTRIBUTIONS[name]
-
-
-def _check_split(split):
-    """Raise ValueError unless ``split`` is 'train' or 'test'."""
-    if split not in SPLIT_SEED_OFFSETS:
-        raise ValueError(f"unknown split {split!r}; expected 'train' or 'test'")
 
 
 def contrast_range(distribution="full", contrast=None):
@@ -319,13 +306,6 @@ def _mean_zero(b):
 
 # ---------------------------------------------------------------------- frame
 
-def _ownership_range(n, size, rank):
-    """Rows owned by ``rank`` under PETSc's default (PETSC_DECIDE) split."""
-    base, extra = divmod(n, size)
-    start = rank * base + min(rank, extra)
-    return start, start + base + (rank < extra)
-
-
 @dataclass(eq=False)
 class Frame:
     """One benchmark problem ``A p = b`` in Morton order.
@@ -370,51 +350,6 @@ class Frame:
         image = np.full(w * h, np.nan)
         image[self.perm] = values
         return image.reshape(h, w)
-
-    def petsc_mat(self, comm=None):
-        """Distributed PETSc AIJ copy of ``A`` with the constant null space.
-
-        Parameters
-        ----------
-        comm : petsc4py.PETSc.Comm or mpi4py communicator, optional
-            Defaults to ``PETSc.COMM_WORLD``; each rank inserts only its rows.
-
-        Returns
-        -------
-        petsc4py.PETSc.Mat
-        """
-        from petsc4py import PETSc
-
-        comm = PETSc.COMM_WORLD if comm is None else PETSc.Comm(comm)
-        start, end = _ownership_range(self.n, comm.getSize(), comm.getRank())
-        local = self.A[start:end]
-        indptr = local.indptr.astype(PETSc.IntType)
-        indices = local.indices.astype(PETSc.IntType)
-        row_nnz = np.diff(indptr)
-        in_block = (indices >= start) & (indices < end)
-        row_of_entry = np.repeat(np.arange(end - start), row_nnz)
-        d_nnz = np.bincount(row_of_entry[in_block], minlength=end - start)
-        d_nnz = d_nnz.astype(PETSc.IntType)
-        mat = PETSc.Mat().createAIJ(
-            size=((end - start, self.n), (end - start, self.n)),
-            nnz=(d_nnz, row_nnz - d_nnz),
-            comm=comm,
-        )
-        # Set on every rank: petsc4py preallocates ranks without rows differently,
-        # and a flag that differs across ranks deadlocks MPIAIJ assembly.
-        mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-        mat.setValuesCSR(indptr, indices, local.data)
-        mat.assemble()
-        mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=comm))
-        mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        return mat
-
-    def petsc_vec(self, mat):
-        """Rank-local part of ``b`` in a Vec laid out like ``mat``'s rows."""
-        vec = mat.createVecs("left")
-        start, end = vec.getOwnershipRange()
-        vec.setArray(self.b[start:end])
-        return vec
 
 
 def _make_rhs(kind, rng, rho, ix, iy):
@@ -478,131 +413,6 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
     )
 
 
-# -------------------------------------------------------------------- dataset
-
-def dataset_seeds(split, count):
-    """Seeds of a dataset split.
-
-    Train uses ``0 .. count-1`` and test ``1_000_000 + i``, so the splits are
-    disjoint for every allowed ``count`` (1 to 1_000_000).
-
-    Returns
-    -------
-    numpy.ndarray of int64
-    """
-    _check_split(split)
-    count = _check_positive_int(count, "count")
-    if count > TEST_SEED_OFFSET:
-        raise ValueError(f"count must be at most {TEST_SEED_OFFSET}, got {count}")
-    return SPLIT_SEED_OFFSETS[split] + np.arange(count, dtype=np.int64)
-
-
-def default_cache_dir():
-    """``$PETSC_HTP_CACHE`` if set, else ``~/.cache/petsc_htp``."""
-    return Path(os.environ.get("PETSC_HTP_CACHE") or Path.home() / ".cache" / "petsc_htp")
-
-
-def _frames_to_arrays(frames, key):
-    """Flatten a non-empty list of same-size frames into cache-file arrays."""
-    return {
-        "version": np.array(GENERATOR_VERSION),
-        "key": np.array(key),
-        "params": np.array(json.dumps([f.params for f in frames])),
-        "indptr": np.stack([f.A.indptr for f in frames]),
-        "indices": np.concatenate([f.A.indices for f in frames]),
-        "data": np.concatenate([f.A.data for f in frames]),
-        "b": np.stack([f.b for f in frames]),
-        "rho": np.stack([f.rho for f in frames]),
-        "coords": np.stack([f.coords for f in frames]),
-        "perm": np.stack([f.perm for f in frames]),
-        "grid_shape": np.array([f.grid_shape for f in frames]),
-    }
-
-
-def _frames_from_arrays(arrays):
-    """Rebuild frames from the arrays of a cache file."""
-    indptr = arrays["indptr"]
-    n = indptr.shape[1] - 1
-    offsets = np.concatenate([[0], np.cumsum(indptr[:, -1])])
-    indices, data = arrays["indices"], arrays["data"]
-    params = json.loads(arrays["params"].item())
-    frames = []
-    for k, frame_params in enumerate(params):
-        entries = slice(offsets[k], offsets[k + 1])
-        frames.append(Frame(
-            A=sp.csr_matrix((data[entries], indices[entries], indptr[k]), shape=(n, n)),
-            b=arrays["b"][k],
-            rho=arrays["rho"][k],
-            coords=arrays["coords"][k],
-            grid_shape=tuple(int(v) for v in arrays["grid_shape"][k]),
-            perm=arrays["perm"][k],
-            params=frame_params,
-        ))
-    return frames
-
-
-def _read_cache(path, key):
-    """Frames stored at ``path``, or None if missing, unreadable or stale."""
-    try:
-        with np.load(path, allow_pickle=False) as stored:
-            if stored["version"].item() != GENERATOR_VERSION or stored["key"].item() != key:
-                return None
-            return _frames_from_arrays(stored)
-    except (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile):
-        return None
-
-
-def load_dataset(n, split="train", distribution="full", count=None, cache_dir=None):
-    """Load (generating and caching on first use) a dataset of frames.
-
-    Parameters
-    ----------
-    n : int
-        Problem size.
-    split : {'train', 'test'}
-        Seed split (see :func:`dataset_seeds`).
-    distribution : str
-        Name in :data:`DISTRIBUTIONS`.
-    count : int, optional
-        Number of frames; 100 for train and 20 for test by default.
-    cache_dir : str or Path, optional
-        Cache directory; defaults to :func:`default_cache_dir`.
-
-    Returns
-    -------
-    list of Frame
-    """
-    n = _check_positive_int(n, "n")
-    _check_split(split)
-    _check_distribution(distribution)
-    count = DEFAULT_COUNTS[split] if count is None else count
-    seeds = dataset_seeds(split, count)
-    key = json.dumps({"n": n, "split": split, "distribution": distribution,
-                      "count": int(count)}, sort_keys=True)
-    directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = directory / f"multiphase_n{n}_{split}_{distribution}_c{count}.npz"
-    frames = _read_cache(path, key)
-    if frames is None:
-        frames = [make_frame(n, seed=int(s), distribution=distribution) for s in seeds]
-        save_frames(frames, path, key)
-    return frames
-
-
-def save_frames(frames, path, key="frames"):
-    """Write same-size frames to one .npz file atomically (readable by :func:`load_frames`)."""
-    with atomic_open(path, "wb") as handle:
-        np.savez(handle, **_frames_to_arrays(frames, key))
-
-
-def load_frames(path):
-    """Frames saved by :func:`save_frames` (or a dataset cache file)."""
-    with np.load(path, allow_pickle=False) as stored:
-        if stored["version"].item() != GENERATOR_VERSION:
-            raise ValueError(f"{path} was written by scene generator {stored['version'].item()}, "
-                             f"this is {GENERATOR_VERSION}")
-        return _frames_from_arrays(stored)
-
-
 # ------------------------------------------------------------------- reports
 
 def frame_summary(frame):
@@ -622,65 +432,3 @@ def frame_summary(frame):
         f"barriers ({len(p['barriers'])}): {barriers}",
         f"nnz={frame.A.nnz} diag range=[{diag.min():.4g}, {diag.max():.4g}]",
     ])
-
-
-def _image_gradient(image, spacing, axis):
-    """``numpy.gradient`` along ``axis``, zero when the axis has one cell."""
-    if image.shape[axis] < 2:
-        return np.zeros_like(image)
-    return np.gradient(image, spacing, axis=axis)
-
-
-def _show(fig, ax, image, title, **style):
-    """Draw one image panel with a colour bar."""
-    shown = ax.imshow(np.ma.masked_invalid(image), origin="lower",
-                      extent=(0, 1, 0, 1), interpolation="nearest", **style)
-    fig.colorbar(shown, ax=ax, shrink=0.8)
-    ax.set_title(title)
-
-
-def _draw_velocity(ax, pressure, rho):
-    """Quiver of ``-grad(p) / rho`` on a subsampled grid (none if it is zero)."""
-    h, w = pressure.shape
-    u = -_image_gradient(pressure, 1.0 / w, axis=1) / rho
-    v = -_image_gradient(pressure, 1.0 / h, axis=0) / rho
-    if not np.any(np.nan_to_num(np.hypot(u, v))):
-        return
-    step = max(1, max(w, h) // 20)
-    x, y = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
-    sub = (slice(None, None, step), slice(None, None, step))
-    ax.quiver(x[sub], y[sub], np.ma.masked_invalid(u[sub]),
-              np.ma.masked_invalid(v[sub]), color="black")
-
-
-def plot_frame(frame, path, pressure=None):
-    """Save a PNG with density, right-hand side and optionally pressure panels.
-
-    Parameters
-    ----------
-    frame : Frame
-    path : str or Path
-        Output PNG, written atomically.
-    pressure : array_like, shape (N,), optional
-        Solution in Morton order; adds a pressure panel with velocity arrows.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import LogNorm
-    from matplotlib.figure import Figure
-
-    rho = frame.to_image(frame.rho)
-    rhs = frame.to_image(frame.b)
-    panels = 2 if pressure is None else 3
-    fig = Figure(figsize=(4.5 * panels, 4))
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, panels, squeeze=False)[0]
-    _show(fig, axes[0], rho, "density", cmap="viridis", norm=LogNorm())
-    limit = float(np.nanmax(np.abs(rhs))) or 1.0
-    _show(fig, axes[1], rhs, "right-hand side", cmap="RdBu_r", vmin=-limit, vmax=limit)
-    if pressure is not None:
-        p = frame.to_image(pressure)
-        _show(fig, axes[2], p, "pressure, velocity -grad(p)/rho", cmap="coolwarm")
-        _draw_velocity(axes[2], p, rho)
-    fig.tight_layout()
-    with atomic_open(path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=100)

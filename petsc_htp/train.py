@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from . import checkpoint
 from .atomic import write_text
@@ -26,7 +25,7 @@ from .loss import cosine_loss, n_probes, sai_loss, smoothed_probes
 from .model import HTPConfig, HTPNet
 from .ordering import rcm_permutation
 from .pcg import pcg
-from .scenes import load_dataset
+from .dataset import load_dataset
 
 
 @dataclass
@@ -193,6 +192,8 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
         checkpoint.save(path, net, provenance(), extra)
 
     budget = s.max_minutes * 60 if s.max_minutes else math.inf
+    from tqdm import tqdm          # the [bench] extra
+
     bar = tqdm(total=s.max_steps, initial=step, desc="train", dynamic_ncols=True)
     window = []
     t0 = time.perf_counter() - elapsed

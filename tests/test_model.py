@@ -27,14 +27,26 @@ def test_forward_shapes_and_symmetric_m(tiny_cfg, n):
     np.testing.assert_allclose(M, M.T, atol=1e-6 * np.abs(M).max())
 
 
-def test_parameter_count_independent_of_n(tiny_cfg):
-    net = HTPNet(tiny_cfg)
-    before = net.n_params()
-    for n in (64, 1000):
-        part = tiny_cfg.partition(n)
-        frame = make_frame(n)
-        net(build_input(frame.A, part), part)
-    assert net.n_params() == before
+def test_one_set_of_weights_serves_every_n(tiny_cfg):
+    """Forwards at other N neither add, reshape nor change weights, nor leave state behind."""
+    torch.manual_seed(0)
+    net = HTPNet(tiny_cfg).eval()
+    before = {k: v.clone() for k, v in net.state_dict().items()}
+    count = net.n_params()
+    inputs = {}
+    for n in (64, 300, 1000):
+        frame, part = make_frame(n, seed=1), tiny_cfg.partition(n)
+        inputs[n] = (build_input(frame.A, part, frame.coords, frame.rho), part)
+    with torch.no_grad():
+        first = net(*inputs[64])
+        for n in (300, 1000):
+            assert net(*inputs[n]).shape == (inputs[n][1].packed_width,)
+        again = net(*inputs[64])
+    after = net.state_dict()
+    assert net.n_params() == count and after.keys() == before.keys()
+    for k, v in before.items():
+        assert torch.equal(after[k], v), k
+    torch.testing.assert_close(again, first, rtol=0, atol=0)
 
 
 def test_units_do_not_change_the_preconditioner(tiny_cfg):

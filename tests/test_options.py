@@ -37,6 +37,7 @@ def test_expected_method_files_exist():
         assert "-options_file options/common.opts" in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", METHODS)
 def test_method_file_converges(method, tiny_ckpt):
     code, out = run_example("-options_file", f"options/{method}.opts", "-n", 1024, "-seed", 7,
@@ -61,6 +62,7 @@ def test_petsc_itself_reads_the_nested_common_file():
     assert out.stdout.splitlines()[0].split() == ["cg", "jacobi", "1e-08", "unpreconditioned"], out.stdout
 
 
+@pytest.mark.slow
 def test_compare_table_and_plot(tiny_ckpt, tmp_path):
     png = tmp_path / "sub" / "demo.png"
     code, out = run_example("-n", 1024, "-compare", "-plot", png, "-htp_checkpoint", tiny_ckpt)
@@ -74,6 +76,7 @@ def test_compare_table_and_plot(tiny_ckpt, tmp_path):
     assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_help_lists_htp_options_with_defaults(tiny_ckpt):
     code, out = run_example("-n", 256, "-help", "-htp_checkpoint", tiny_ckpt, "-htp_probe", 2)
     assert code == 0, out
@@ -83,6 +86,7 @@ def test_help_lists_htp_options_with_defaults(tiny_ckpt):
         assert re.search(rf"-htp_{name} <\w+> <now .* : formerly {re.escape(default)}>: \S", out), (name, out[-3000:])
 
 
+@pytest.mark.slow
 def test_nonconvergence_exits_nonzero(tiny_ckpt):
     code, out = run_example("-options_file", "options/cg_none.opts", "-n", 1024, "-ksp_max_it", 5)
     assert code == 1

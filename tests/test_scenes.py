@@ -1,27 +1,21 @@
 """Tests for the multiphase Poisson benchmark generator."""
-import os
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from petsc_htp.dataset import dataset_seeds, load_dataset
+from petsc_htp.sceneplot import plot_frame
 from petsc_htp.scenes import (
     DISTRIBUTIONS,
     GENERATOR_VERSION,
     assemble_operator,
     barrier_mask,
     buoyancy_rhs,
-    dataset_seeds,
     frame_summary,
     grid_dims,
-    load_dataset,
     make_frame,
     morton_cells,
-    plot_frame,
     sample_params,
 )
 
@@ -401,65 +395,3 @@ def test_to_image_places_cells_and_marks_missing():
     np.testing.assert_array_equal(image[0], [0.0, 1.0, 4.0])
     np.testing.assert_array_equal(image[1, :2], [2.0, 3.0])
     assert np.isnan(image[1, 2])
-
-
-# --------------------------------------------------------------------- PETSc
-
-def test_petsc_mat_matches_scipy():
-    pytest.importorskip("petsc4py")
-    from petsc4py import PETSc
-
-    frame = make_frame(300, seed=5)
-    mat = frame.petsc_mat()
-    assert mat.getSize() == (300, 300)
-    indptr, indices, data = mat.getValuesCSR()
-    np.testing.assert_array_equal(indptr, frame.A.indptr)
-    np.testing.assert_array_equal(indices, frame.A.indices)
-    np.testing.assert_array_equal(data, frame.A.data)
-    nullspace = mat.getNullSpace()
-    assert nullspace is not None and nullspace.hasConstant()
-    assert nullspace.test(mat)
-    ones, product = mat.createVecs()
-    ones.set(1.0)
-    mat.mult(ones, product)
-    assert product.norm(PETSc.NormType.INFINITY) <= 1e-10 * frame.A.diagonal().max()
-    assert mat.isSymmetricKnown() == (True, True)
-    np.testing.assert_array_equal(frame.petsc_vec(mat).getArray(), frame.b)
-    assert frame.petsc_mat(PETSc.COMM_SELF).equal(mat)
-
-
-MPI_SCRIPT = """
-import numpy as np
-from petsc_htp.scenes import make_frame
-frame = make_frame(301, seed=3)
-mat = frame.petsc_mat()
-start, end = mat.getOwnershipRange()
-local = frame.A[start:end]
-indptr, indices, data = mat.getValuesCSR()
-assert 0 < end - start < frame.n
-assert np.array_equal(indptr, local.indptr) and np.array_equal(indices, local.indices)
-assert np.array_equal(data, local.data)
-assert np.array_equal(frame.petsc_vec(mat).getArray(), frame.b[start:end])
-ones, product = mat.createVecs()
-ones.set(1.0)
-mat.mult(ones, product)
-assert product.norm() <= 1e-10 * frame.A.diagonal().max()
-from petsc4py import PETSc
-PETSc.Sys.syncPrint("rank ok", mat.getComm().getRank())   # ordered output, no interleaving
-PETSc.Sys.syncFlush()
-"""
-
-
-@pytest.mark.mpi
-def test_petsc_mat_distributed_over_two_ranks():
-    pytest.importorskip("petsc4py")
-    mpiexec = shutil.which("mpiexec")
-    if mpiexec is None:
-        pytest.skip("mpiexec not found")
-    root = str(Path(__file__).resolve().parents[1])
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
-    result = subprocess.run([mpiexec, "-n", "2", sys.executable, "-c", MPI_SCRIPT],
-                            capture_output=True, text=True, timeout=120, env=env)
-    assert result.returncode == 0, result.stderr
-    assert result.stdout.splitlines() == ["rank ok 0", "rank ok 1"]

@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import checkpoint
+from .aggregate import cells
+from .markdown import md_table, n_label
 from .store import read_json, read_jsonl, study_path, write_text
-from .tables import md_table, n_label
 
 CARD = checkpoint.DEFAULT.with_name("MODEL_CARD.md")
 BAR = 0.5           # HTP mean iterations must be at most BAR x Jacobi's at these scales
@@ -26,21 +27,18 @@ BAR_SCALES = (1024, 2048, 4096)
 
 def iteration_table(rows) -> tuple[list, dict]:
     """Per N: mean iterations of each method, HTP/Jacobi ratio and HTP's failures."""
-    by = {}
-    for r in rows:
-        by.setdefault(r["n"], {}).setdefault(r["method"], []).append(r)
+    by = cells(rows, "n", "method")
     out, verdict = [], {}
-    for n in sorted(by):
-        m = by[n]
-        mean = {k: float(np.mean([r["iterations"] for r in v if r.get("ok")] or [np.nan])) for k, v in m.items()}
-        bad = [r for r in m.get("cg_htp", []) if not r.get("ok")]
+    for n in sorted({n for n, _ in by}):
+        mean = {m: c["iterations"]["mean"] for (k, m), c in by.items() if k == n}
+        htp = by.get((n, "cg_htp"), {"failed": 0, "frames": 0})
         ratio = mean.get("cg_htp", np.nan) / mean.get("cg_jacobi", np.nan)
-        verdict[n] = {"ratio": ratio, "failures": len(bad), "frames": len(m.get("cg_htp", [])),
+        verdict[n] = {"ratio": ratio, "failures": htp["failed"], "frames": htp["frames"],
                       "beats_bjacobi": mean.get("cg_htp", np.inf) < mean.get("cg_bjacobi", -np.inf)}
         out.append([n_label(n)] + [f"{mean.get(k, np.nan):.0f}" for k in ("cg_jacobi", "cg_icc", "cg_bjacobi",
                                                                           "cg_htp")]
                    + [f"{ratio:.2f}", f"{mean.get('cg_bjacobi', np.nan) / mean.get('cg_jacobi', np.nan):.2f}",
-                      f"{len(bad)}/{len(m.get('cg_htp', []))}"])
+                      f"{htp['failed']}/{htp['frames']}"])
     return out, verdict
 
 

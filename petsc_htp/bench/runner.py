@@ -1,14 +1,10 @@
-"""One frame, one method: PETSc options files under a prefix, or pyamg's classical AMG with NumPy PCG.
+"""One frame, one method: a PETSc options file under its prefix, or pyamg's classical AMG with NumPy PCG.
 
-This module is the single place that loads a PETSc options file into a fresh
-KSP: :func:`read_options_file` follows ``-options_file`` includes (resolved
-against the current directory, the repository root, then the including
-file's folder), :class:`MethodOptions` puts a file's options under the
-method's own prefix for the duration of a run and removes them afterwards,
-and :func:`solve_petsc` times ``KSPSetUp`` (plus ``PCSetUpOnBlocks``) and
-``KSPSolve`` separately. Every solve returns one row (a dict); a method that
-raises, diverges or produces NaN gives a failure row instead of stopping the
-run.
+PETSc methods are loaded by :class:`petsc_htp.methods.Loaded` (the project's
+one loader) and solved by :func:`petsc_htp.methods.solve`, which times
+``KSPSetUp`` (plus ``PCSetUpOnBlocks``) and ``KSPSolve`` separately. Every
+solve returns one row (a dict); a method that raises, diverges or produces
+NaN gives a failure row instead of stopping the run.
 """
 from __future__ import annotations
 
@@ -19,24 +15,18 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..pc import attach
-from ..options import OPTIONS_DIR, read_options_file
+from ..methods import Loaded, common_setting, solve
+from ..petscmat import attach, frame_mat, frame_vec
 
 # Options that only print (the bench records the reason itself).
 PRINT_ONLY = ("ksp_converged_reason",)
 # A converged solve whose true residual misses rtol by more than this factor is a failure.
 RESIDUAL_SLACK = 10.0
-PYAMG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_MAX_IT", "nan": "DIVERGED_NANORINF",
+PYAMG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_ITS", "nan": "DIVERGED_NANORINF",
                  "indefinite_pc": "DIVERGED_INDEFINITE_PC", "indefinite_mat": "DIVERGED_INDEFINITE_MAT"}
 
 
-# ------------------------------------------------------------------ options files
-
-def common_setting(name, default):
-    """A value of ``options/common.opts`` (the shared tolerances), as a float."""
-    values = dict(read_options_file(OPTIONS_DIR / "common.opts"))
-    return float(values[name]) if values.get(name) is not None else default
-
+# ------------------------------------------------------------------ options
 
 def htp_options(checkpoint=None, device=None, threads=0) -> list:
     """``htp_*`` option pairs for every HTP preconditioner (also under ``sub_`` for block Jacobi)."""
@@ -46,49 +36,16 @@ def htp_options(checkpoint=None, device=None, threads=0) -> list:
     return pairs + [("sub_" + k, v) for k, v in pairs]
 
 
-class MethodOptions:
-    """An options file loaded under the method's prefix while the object is open.
-
-    Parameters
-    ----------
-    method : petsc_htp.bench.methods.Method
-    extra : list of (name, value)
-        Options set after the file (e.g. :func:`htp_options`), winning over it.
-    """
-
-    def __init__(self, method, extra=()):
-        self.prefix = method.prefix
-        self.pairs = [p for p in read_options_file(method.path) if p[0] not in PRINT_ONLY] + list(extra)
-        names = {name for name, _ in self.pairs}
-        self.leaf = dict(self.pairs).get("htp_bjacobi_leaf") if "pc_bjacobi_blocks" not in names else None
-
-    def __enter__(self):
-        db = PETSc.Options()
-        for name, value in self.pairs:
-            db.setValue(self.prefix + name, "" if value is None else value)
-        return self
-
-    def __exit__(self, *exc):
-        db = PETSc.Options()
-        for name in list(db.getAll()):
-            if name.startswith(self.prefix):
-                db.delValue(name)
-
-    def set_blocks(self, n):
-        """``-htp_bjacobi_leaf L`` in the file: use ``ceil(N/L)`` block-Jacobi blocks for this N."""
-        if self.leaf is not None:
-            PETSc.Options().setValue(self.prefix + "pc_bjacobi_blocks", -(-n // int(self.leaf)))
+def load(method, extra=()) -> Loaded:
+    """The method's options file under its prefix, plus ``extra``, without the print-only options."""
+    loaded = Loaded(method.path, prefix=method.prefix, extra=extra)
+    loaded.__enter__()
+    for name in PRINT_ONLY:
+        PETSc.Options(method.prefix).delValue(name)
+    return loaded
 
 
 # ------------------------------------------------------------------------- rows
-
-def reason_name(code) -> str:
-    """KSP converged-reason code -> PETSc name (e.g. CONVERGED_RTOL)."""
-    for name, value in vars(PETSc.KSP.ConvergedReason).items():
-        if name.isupper() and value == code and name != "ITERATING":
-            return name
-    return str(code)
-
 
 def residuals(A, b, x):
     """``(||b - A x|| / ||b||, the same with the constant (null-space) component removed)``."""
@@ -160,54 +117,32 @@ class Recorder:
 
 # ------------------------------------------------------------------------ PETSc
 
-def _htp_inference_ms(ksp):
-    """Milliseconds of the HTP network setup(s) inside ``ksp``'s PC, or None without HTP."""
-    pc = ksp.getPC()
-    pcs = [k.getPC() for k in pc.getBJacobiSubKSP()] if pc.getType() == "bjacobi" else [pc]
-    times = [getattr(p.getPythonContext(), "setup_ms", None) for p in pcs if p.getType() == "python"]
-    times = [t for t in times if t is not None]
-    return float(sum(times)) if times else None
-
-
-def solve_petsc(method, opts, problem, monitor=False) -> dict:
-    """Solve ``problem`` with a fresh KSP under ``opts``' prefix; return its row.
+def solve_petsc(method, prefix, problem, monitor=False) -> dict:
+    """Solve ``problem`` with a fresh KSP under ``prefix``; return its row.
 
     Setup is ``KSPSetUp`` + ``KSPSetUpOnBlocks`` (inference, AMG setup or
     factorisation); solve is ``KSPSolve``. With ``monitor`` the row gets
     ``curve``: [ms since setup start, iteration, ||r|| / ||b||] per iteration.
     """
     frame = problem.frame
-    A = frame.petsc_mat(PETSc.COMM_SELF)
+    A = frame_mat(frame, PETSc.COMM_SELF)
     if problem.attach:
         attach(A, coords=frame.coords, density=frame.rho)
-    b = frame.petsc_vec(A)
-    x = b.duplicate()
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    b = frame_vec(frame, A)
+    rec = Recorder(b.norm())
+    res = None
     try:
-        opts.set_blocks(problem.n)
-        ksp.setOptionsPrefix(opts.prefix)
-        ksp.setOperators(A, A)
-        ksp.setFromOptions()
-        if problem.rtol:
-            ksp.setTolerances(rtol=problem.rtol)
-        rec = Recorder(b.norm())
-        if monitor:
-            ksp.setMonitor(rec)
-        x.set(0.0)
         rec.start()
-        ksp.setUp()
-        ksp.setUpOnBlocks()
-        t1 = time.perf_counter()
-        ksp.solve(b, x)
-        t2 = time.perf_counter()
-        row = {**base_row(method, problem), "setup_ms": 1e3 * (t1 - rec.t0), "solve_ms": 1e3 * (t2 - t1),
-               "iterations": ksp.getIterationNumber(), "reason": reason_name(ksp.getConvergedReason()),
-               "ksp": ksp.getType(), "pc": ksp.getPC().getType(), "inference_ms": _htp_inference_ms(ksp)}
+        res = solve(A, b, prefix, monitor=rec if monitor else None, rtol=problem.rtol)
+        row = {**base_row(method, problem), "setup_ms": res["setup_ms"], "solve_ms": res["solve_ms"],
+               "iterations": res["its"], "reason": res["reason"], "ksp": res["ksp"],
+               "pc": res["pc"].split("/")[0], "inference_ms": res["htp_setup_ms"],
+               "bytes_per_unknown": None if res["htp_bytes"] is None else res["htp_bytes"] / problem.n}
         if monitor:
             row["curve"] = rec.points
-        return _finish(row, frame.A, frame.b, x.getArray().copy(), ksp.getTolerances()[0])
+        return _finish(row, frame.A, frame.b, res["x"].getArray().copy(), res["rtol"])
     finally:
-        for obj in (ksp, x, b, A):
+        for obj in (A, b) + ((res["x"],) if res else ()):
             obj.destroy()
 
 
@@ -255,24 +190,14 @@ def solve_pyamg(method, problem, monitor=False) -> dict:
 
 # ----------------------------------------------------------------------- driver
 
-def _solve(method, opts, problem, monitor):
+def _solve(method, prefix, problem, monitor):
     """One solve; any exception becomes a failure row."""
     try:
         if method.is_petsc:
-            return solve_petsc(method, opts, problem, monitor)
+            return solve_petsc(method, prefix, problem, monitor)
         return solve_pyamg(method, problem, monitor)
     except Exception as exc:  # a failing method is a result, never the end of the run
         return exception_row(method, problem, exc)
-
-
-class _NoOptions:
-    """Stand-in for :class:`MethodOptions` of a method without an options file."""
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return None
 
 
 def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
@@ -283,7 +208,7 @@ def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lamb
     discarded. ``tick()`` is called after every recorded solve.
     """
     try:
-        opts = MethodOptions(method, extra) if method.is_petsc else _NoOptions()
+        loaded = load(method, extra) if method.is_petsc else None
     except Exception as exc:  # unreadable options file: every problem fails
         rows = []
         for problem in problems:
@@ -291,11 +216,14 @@ def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lamb
             tick()
         return rows
     rows, warmed = [], set()
-    with opts:
+    try:
         for problem in problems:
             if warmup and problem.n not in warmed:
                 warmed.add(problem.n)
-                _solve(method, opts, problem, False)
-            rows.append(_solve(method, opts, problem, monitor))
+                _solve(method, method.prefix, problem, False)
+            rows.append(_solve(method, method.prefix, problem, monitor))
             tick()
+    finally:
+        if loaded is not None:
+            loaded.__exit__(None, None, None)
     return rows

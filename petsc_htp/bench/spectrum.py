@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .stats import condition_number
+from .aggregate import condition_number
 
 
 def dense_operator(apply, n) -> np.ndarray:

@@ -11,9 +11,6 @@ from ..atomic import write_text
 
 META = "meta.json"
 REPORT = "report.md"
-CHEAP = ("table", "curves", "scaling", "stability")
-TRAINED = ("generalization", "size", "profile")
-STUDIES = CHEAP + TRAINED + ("fastpath",)
 
 
 def clean(value):

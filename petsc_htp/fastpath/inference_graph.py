@@ -5,8 +5,7 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from ..features import build_input
-from ..ordering import choose_ordering
+from ..features import input_values
 from .timing import _capture, _timed
 
 
@@ -20,7 +19,9 @@ class InferenceGraph:
     def __init__(self, htp, A, coords=None, density=None):
         self.htp, self.device = htp, htp.device
         self.part = htp.net.cfg.partition(A.shape[0])
-        self.inp = self._features(A, coords, density)
+        self.analysis = htp.analyse(A, coords)
+        self.perm = self.analysis.perm
+        self.inp = self._features(A, density)
         self.graph, self.error = None, None
         self.inference_ms = None
         with torch.no_grad():
@@ -36,22 +37,19 @@ class InferenceGraph:
         """True when the forward replays as a CUDA Graph."""
         return self.graph is not None
 
-    def _features(self, A, coords, density):
-        A = sp.csr_matrix(A)
-        p, _ = choose_ordering(A, coords, "auto")
-        self.perm = p
-        inp = build_input(A[p][:, p], self.part, None if coords is None else np.asarray(coords)[p],
-                          None if density is None else np.asarray(density)[p])
+    def _features(self, A, density):
+        inp = input_values(self.analysis.structure, self.analysis.permuted(sp.csr_matrix(A)),
+                           None if density is None else np.asarray(density)[self.perm])
         inp.scale = torch.tensor(inp.scale, dtype=torch.float32)
         return inp.to(self.device)
 
     @torch.no_grad()
-    def __call__(self, A, coords=None, density=None) -> torch.Tensor:
-        """Refresh the inputs from ``A`` (same N and pattern); return the packed factors.
+    def __call__(self, A, density=None) -> torch.Tensor:
+        """Refresh the inputs from ``A`` (same pattern and coordinates as captured); return the packed factors.
 
         The forward's milliseconds (features excluded) go to ``inference_ms``.
         """
-        new = self._features(A, coords, density)
+        new = self._features(A, density)
         for name, value in vars(new).items():
             old = getattr(self.inp, name)
             if value.layout == torch.sparse_coo:

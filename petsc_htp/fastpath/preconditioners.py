@@ -9,7 +9,7 @@ import torch
 
 from .timing import _capture, _device, _sync, _timed
 
-METHODS = ("none", "jacobi", "bjacobi", "htp")
+METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig")
 
 
 def _constant_null(A) -> bool:
@@ -110,27 +110,36 @@ class BlockJacobi(Preconditioner):
 
 
 class HTPPreconditioner(Preconditioner):
-    """The learned preconditioner: ``htp.setup`` gives an HTPOperator applied on its own buffers.
+    """The learned preconditioner: ``htp.analyse`` once, ``htp.numeric`` per operator, on fixed buffers.
 
-    The solver runs in the HTP ordering ``perm``; a new operator's factors are
-    copied into the first operator's buffers so a captured graph stays valid.
+    The solver runs in the HTP ordering ``perm``; a new operator's factors land
+    in the first operator's buffers so a captured graph stays valid. A new
+    pattern or new coordinates get a new analysis.
     """
 
     op = None
+    analysis = None
+    _coords = None
 
     def __init__(self, A, htp, coords=None, density=None, device="auto"):
         super().__init__(A, coords, density, device)
         if _device(htp.device) != self.device:
             raise ValueError(f"the HTP network lives on {htp.device}, not on {self.device}")
         self.htp = htp
+        self.last = None
 
     def _setup(self):
-        s = self.htp.setup(self.A, self.coords, self.density)
+        same_xy = (self.coords is None) == (self._coords is None) and (
+            self.coords is None or np.array_equal(self.coords, self._coords))
+        if self.analysis is None or not same_xy or not self.analysis.same_pattern(self.A):
+            self.analysis, self.last = self.htp.analyse(self.A, self.coords), None
+            self._coords = None if self.coords is None else np.array(self.coords)
+        self.last = self.htp.numeric(self.analysis, self.A, self.density, into=self.last)
         if self.op is None:
-            self.op = s.op
-        else:
-            self.op.load_(s.op.packed)
-        self.perm = s.perm
+            self.op = self.last.op
+        elif self.last.op is not self.op:
+            self.op.load_(self.last.op.packed)
+        self.perm = self.last.perm
 
     def apply_(self, r, z):
         self.op.r[:self.n, 0].copy_(r)
@@ -138,9 +147,45 @@ class HTPPreconditioner(Preconditioner):
         z.copy_(self.op.y[:self.n, 0])
 
 
+class TwoLevelPreconditioner(Preconditioner):
+    """The two-level variant (:mod:`petsc_htp.twolevel`): analysis once, factor per operator, float64 inside.
+
+    The solver runs in the leaves' ordering ``perm``; the float32 solver vectors are widened for
+    the float64 apply, whose buffers stay fixed so a captured graph stays valid.
+    """
+
+    def __init__(self, A, coarse="eig", rank=4, coords=None, density=None, device="auto"):
+        from ..leaves import choose_leaves
+        from ..twolevel import analyse
+
+        super().__init__(A, coords, density, device)
+        self.coarse, self.rank = coarse, rank
+        self.analysis = analyse(self.A, choose_leaves(self.A, coords), self.device)
+        self.perm = self.analysis.leaves.perm
+        self.op = None
+        self.r64 = torch.zeros(self.n, dtype=torch.float64, device=self.device)
+        self.z64 = torch.zeros_like(self.r64)
+
+    def _setup(self):
+        from ..twolevel import factor
+
+        new = factor(self.analysis, self.A, self.coarse, self.rank)
+        if self.op is None:
+            self.op = new
+        else:
+            self.op.load_(new)
+
+    def apply_(self, r, z):
+        self.r64.copy_(r)
+        self.op.apply_(self.r64, self.z64)
+        z.copy_(self.z64)
+
+
 def make_preconditioner(method, A, htp=None, coords=None, density=None, device="auto") -> Preconditioner:
-    """Build (without setting up) preconditioner ``method`` (none, jacobi, bjacobi, htp) for ``A``."""
+    """Build (without setting up) preconditioner ``method`` (one of :data:`METHODS`) for ``A``."""
     classes = {"none": Preconditioner, "jacobi": Jacobi, "bjacobi": BlockJacobi}
+    if method.startswith("twolevel_"):
+        return TwoLevelPreconditioner(A, method.split("_", 1)[1], 4, coords, density, device)
     if method == "htp":
         if htp is None:
             raise ValueError("method 'htp' needs a loaded HTP network (htp=None given)")

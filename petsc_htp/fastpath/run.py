@@ -50,7 +50,7 @@ def run_fastpath(frames, methods=METHODS, htp=None, device="auto", check_every=8
                     if frame.n not in graphs:
                         graphs[frame.n] = capture_inference(htp, frame.A, frame.coords, frame.rho)
                     infer = graphs[frame.n]
-                    infer(frame.A, frame.coords, frame.rho)
+                    infer(frame.A, frame.rho)
                     row.update(inference_ms=infer.inference_ms, inference_graphed=infer.graphed)
             except Exception as exc:  # report and go on with the next method
                 cache.pop(key, None)

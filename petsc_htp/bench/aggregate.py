@@ -1,4 +1,9 @@
-"""Aggregates of result rows: summaries, scaling fits, time to tolerance, Pareto fronts."""
+"""Aggregates of result rows, shared by every report section, chart and the README block.
+
+Rows are grouped by any of their fields (:func:`group`); a group of solves is
+summarised by :func:`cell` (time and iteration statistics over its converged
+rows, failures counted and named), every group at once by :func:`cells`.
+"""
 from __future__ import annotations
 
 import math
@@ -8,10 +13,11 @@ import numpy as np
 
 FPS_BUDGETS = ((24, 1e3 / 24), (60, 1e3 / 60))   # (fps, ms per frame)
 TOLERANCES = (1e-3, 1e-6, 1e-8)
-SHORT_FAILURES = {"DIVERGED_ITS": "max it", "DIVERGED_MAX_IT": "max it", "DIVERGED_BREAKDOWN": "breakdown", "DIVERGED_BREAKDOWN_BICG": "breakdown",
-                  "DIVERGED_INDEFINITE_PC": "indef. PC", "DIVERGED_INDEFINITE_MAT": "indef. A",
-                  "DIVERGED_NANORINF": "NaN/Inf", "DIVERGED_DTOL": "diverged", "NAN": "NaN",
-                  "EXCEPTION": "exception", "RESIDUAL": "true res."}
+SHORT_FAILURES = {"DIVERGED_ITS": "max it", "DIVERGED_MAX_IT": "max it", "DIVERGED_BREAKDOWN": "breakdown",
+                  "DIVERGED_BREAKDOWN_BICG": "breakdown", "DIVERGED_INDEFINITE_PC": "indef. PC",
+                  "DIVERGED_INDEFINITE_MAT": "indef. A", "DIVERGED_NANORINF": "NaN/Inf", "DIVERGED_DTOL": "diverged",
+                  "NAN": "NaN", "EXCEPTION": "exception", "RESIDUAL": "true res."}
+TIMED = ("total_ms", "setup_ms", "solve_ms", "iterations", "inference_ms", "bytes_per_unknown")
 
 
 def group(rows, *keys) -> dict:
@@ -38,15 +44,24 @@ def summary(values) -> dict:
 
 
 def cell(rows) -> dict:
-    """Summary of one (method, N) cell: time and iteration statistics over its converged frames."""
+    """Summary of one group of solves: :data:`TIMED` statistics over its converged rows, and its failures."""
     ok = [r for r in rows if r.get("ok")]
-    out = {key: summary(r.get(key) for r in ok)
-           for key in ("total_ms", "setup_ms", "solve_ms", "iterations", "inference_ms")}
+    out = {key: summary(r.get(key) for r in ok) for key in TIMED}
     out["frames"] = len(rows)
     out["failed"] = len(rows) - len(ok)
     out["failure"] = first_failure(rows)
     out["relres_max"] = max((r["relres_proj"] for r in ok if r.get("relres_proj") is not None), default=math.nan)
     return out
+
+
+def cells(rows, *keys) -> dict:
+    """:func:`cell` of every group of :func:`group` ``(rows, *keys)``."""
+    return {k: cell(v) for k, v in group(rows, *keys).items()}
+
+
+def value(c, key="total_ms", what="mean") -> float:
+    """One statistic of a cell; NaN for a missing cell or one without converged rows."""
+    return c[key][what] if c and c[key]["count"] else math.nan
 
 
 def first_failure(rows):

@@ -1,4 +1,4 @@
-"""Markdown tables and number formatting for the report."""
+"""Markdown for the report and README: number formats, tables, image links and time cells."""
 from __future__ import annotations
 
 import math
@@ -26,7 +26,7 @@ def its(x) -> str:
 
 
 def pm(s, fmt) -> str:
-    """``mean ± std`` of a :func:`petsc_htp.bench.stats.summary`."""
+    """``mean ± std`` of a :func:`petsc_htp.bench.aggregate.summary`."""
     return "—" if missing(s["mean"]) else f"{fmt(s['mean'])} ± {fmt(s['std'])}"
 
 
@@ -47,6 +47,11 @@ def ratio(x) -> str:
     return f"{x:.2f}×" if x >= 0.1 else f"{x:.2g}×"
 
 
+def n_label(n) -> str:
+    """N with a thin thousands separator, as in the paper's tables."""
+    return f"{n:,}".replace(",", " ")
+
+
 def md_table(header, rows, left=1) -> str:
     """A GitHub-flavoured Markdown table; the first ``left`` columns left-aligned, the others right-aligned."""
     def line(cells):
@@ -56,6 +61,17 @@ def md_table(header, rows, left=1) -> str:
     return "\n".join([line(header), rule] + [line(row) for row in rows])
 
 
-def n_label(n) -> str:
-    """N with a thin thousands separator, as in the paper's tables."""
-    return f"{n:,}".replace(",", " ")
+def image(name, title, prefix="") -> str:
+    """A Markdown image of chart ``name`` (``prefix`` is its folder relative to the document)."""
+    return f"![{title}]({prefix}{name})"
+
+
+def time_cell(c, bold=False) -> str:
+    """A :func:`~petsc_htp.bench.aggregate.cell` as ``mean ms (mean iterations)`` with its failures."""
+    if c is None:
+        return "—"
+    if not c["total_ms"]["count"]:
+        return f"✗ {c['failure']}"
+    text = f"{ms(c['total_ms']['mean'])} ({its(c['iterations']['mean'])})"
+    text = f"**{text}**" if bold else text
+    return text + (f" ✗{c['failed']}/{c['frames']} {c['failure']}" if c["failed"] else "")

@@ -1,0 +1,176 @@
+"""Stability map: every method on stress cases beyond the table's setting (no warm-up)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ...scenes import Frame, make_frame
+from ..aggregate import first_failure, group, ordered, summary
+from ..cases import Problem, held_out_frames, held_out_seeds
+from ..markdown import image, its, md_table, n_label, sci
+from ..plotting import figure, heatmap, save
+from .base import Size, Study, solve_all
+
+CHART = "stability.png"
+STRESS = (
+    ("reference", "full distribution, random rhs (the table's setting)"),
+    ("contrast 1e2", "heavy density fixed at 100 (top of the training range)"),
+    ("contrast 1e3", "heavy density fixed at 1000 (10x past training)"),
+    ("contrast 1e4", "heavy density fixed at 10000 (100x past training)"),
+    ("closed only", "only closed barriers (sealed sub-domains)"),
+    ("large N", "N larger than any training scale"),
+    ("odd N", "N not a power of two (ragged last grid row, partial last leaf)"),
+    ("rtol 1e-10", "tolerance 1e-10"),
+    ("rtol 1e-12", "tolerance 1e-12 (near double-precision limit)"),
+    ("natural order", "row-major ordering, no coordinates or density attached"),
+    ("buoyancy rhs", "rhs -d(rho)/dy, supported on density interfaces only"),
+    ("inconsistent rhs", "b + 0.1 rms(b): not mean-zero, outside the range of the singular A"),
+)
+
+
+def natural_order(frame) -> Frame:
+    """The frame permuted from Morton to row-major order (the grid's natural numbering)."""
+    order = np.argsort(frame.perm, kind="stable")
+    A = frame.A[order][:, order].tocsr()
+    A.sort_indices()
+    return dataclasses.replace(frame, A=A, b=frame.b[order], rho=frame.rho[order],
+                               coords=frame.coords[order], perm=frame.perm[order],
+                               params={**frame.params, "ordering": "natural"})
+
+
+def inconsistent(frame, offset=0.1) -> Frame:
+    """The frame with ``offset * rms(b)`` added to every entry of b: b leaves the range of A."""
+    shift = offset * float(np.sqrt(np.mean(frame.b ** 2)))
+    return dataclasses.replace(frame, b=frame.b + shift, params={**frame.params, "rhs_offset": shift})
+
+
+def _contrast(n, count, value):
+    """Frames whose heavy density is fixed at ``value`` (range ``[0.99 value, value]``)."""
+    return [make_frame(n, s, "full", contrast=(0.99 * value, value)) for s in held_out_seeds(count)]
+
+
+def problems(n, frames, large_n, odd_n) -> list:
+    """Every stress case of :data:`STRESS`, ``frames`` frames each (grouped by case)."""
+    base = held_out_frames(n, frames)
+    cases = {
+        "reference": [Problem(f) for f in base],
+        "contrast 1e2": [Problem(f) for f in _contrast(n, frames, 1e2)],
+        "contrast 1e3": [Problem(f) for f in _contrast(n, frames, 1e3)],
+        "contrast 1e4": [Problem(f) for f in _contrast(n, frames, 1e4)],
+        "closed only": [Problem(f) for f in held_out_frames(n, frames, "closed_only")],
+        "large N": [Problem(f) for f in held_out_frames(large_n, frames)],
+        "odd N": [Problem(f) for f in held_out_frames(odd_n, frames)],
+        "rtol 1e-10": [Problem(f, rtol=1e-10) for f in base],
+        "rtol 1e-12": [Problem(f, rtol=1e-12) for f in base],
+        "natural order": [Problem(natural_order(f), attach=False) for f in base],
+        "buoyancy rhs": [Problem(make_frame(n, s, "full", rhs="buoyancy")) for s in held_out_seeds(frames)],
+        "inconsistent rhs": [Problem(inconsistent(f)) for f in base],
+    }
+    out = []
+    for name, _ in STRESS:
+        for p in cases[name]:
+            p.case = name
+            out.append(p)
+    return out
+
+
+def run(methods, n, frames, large_n, odd_n, extra, tick) -> list:
+    """Every method on every stress case (no warm-up: iterations and failures matter here)."""
+    return solve_all(methods, problems(n, frames, large_n, odd_n), extra, tick, "stability", warmup=False)
+
+
+def _cell(rows):
+    failure = first_failure(rows)
+    if failure:
+        return f"✗ {failure}"
+    return its(summary(r["iterations"] for r in rows)["median"])
+
+
+def _inconsistent_note(rows):
+    """What the converged iterations of the inconsistent-rhs case mean."""
+    true = summary(r.get("relres") for r in rows if r["case"] == "inconsistent rhs" and r.get("ok"))
+    return ("Inconsistent rhs: methods converge on the residual with the constant (null-space) part "
+            f"removed; the true ||b - A x|| / ||b|| stays at {sci(true['median'])} (median), the constant "
+            "part of b that no x can match.") if true["count"] else ""
+
+
+def chart(res, out) -> str:
+    """Methods × stress cases: colour = log10 median iterations, red = failure with its code."""
+    rows = res.rows["stability"]
+    methods = res.methods("stability")
+    cases = ordered(r["case"] for r in rows)
+    groups = group(rows, "case", "method")
+    values = np.full((len(cases), len(methods)), np.nan)
+    labels = np.full(values.shape, "", dtype=object)
+    for (i, case), (j, m) in ((a, b) for a in enumerate(cases) for b in enumerate(methods)):
+        g = groups.get((case, m), [])
+        fail = first_failure(g)
+        if g and not fail:
+            values[i, j] = summary(r["iterations"] for r in g)["median"]
+            labels[i, j] = f"{values[i, j]:.0f}"
+        else:
+            labels[i, j] = fail or ""
+    fig, ax = figure(1.5 + 1.1 * len(methods), 1.2 + 0.42 * len(cases))
+    im = heatmap(ax[0, 0], values, labels, cases, methods)
+    fig.colorbar(im, ax=ax[0, 0], label="log10 iterations")
+    ax[0, 0].set_title("Stability map (red: failure)")
+    return save(fig, out, CHART)
+
+
+class Stability(Study):
+    """Methods × stress cases."""
+
+    name = "stability"
+    help = ("methods x stress cases (contrast, closed barriers, large/odd N, tight rtol, natural ordering, "
+            "buoyancy and inconsistent rhs)")
+    default = True
+    sizes = (Size("stress_n", 4096, 256, "N of the stress cases"),
+             Size("stress_frames", 3, 1, "frames per stress case"),
+             Size("large_n", 65536, 2048, "the 'large N' stress case"),
+             Size("odd_n", 3000, 300, "the 'odd N' stress case"))
+    readme_links = ((CHART, "stability map"),)
+
+    def meta(self, settings):
+        return {"stress": {"n": settings["stress_n"], "frames": settings["stress_frames"],
+                           "large_n": settings["large_n"], "odd_n": settings["odd_n"]}}
+
+    def expected_solves(self, ctx):
+        return len(ctx.methods) * len(STRESS) * ctx.settings["stress_frames"]
+
+    def measure(self, ctx, tick):
+        s = ctx.settings
+        return run(ctx.methods, s["stress_n"], s["stress_frames"], s["large_n"], s["odd_n"], ctx.extra, tick)
+
+    def section(self, res):
+        rows = res.rows["stability"]
+        groups = group(rows, "case", "method")
+        methods = res.methods("stability")
+        meta = res.meta.get("stress", {})
+        table = [[case] + [_cell(groups[(case, m)]) if (case, m) in groups else "—" for m in methods]
+                 for case in ordered((r["case"] for r in rows), dict(STRESS))]
+        fails = [[r["method"], r["case"], n_label(r["n"]), str(r.get("seed")), r.get("failure") or "",
+                  its(r.get("iterations")), sci(r.get("relres_proj")), (r.get("error") or "")[:120]]
+                 for r in rows if not r.get("ok")]
+        parts = [
+            "## 4. Stability map",
+            f"Median iterations over {meta.get('frames', '?')} frame(s) per case at N = "
+            f"{n_label(meta.get('n', 0))} (large N = {n_label(meta.get('large_n', 0))}, odd N = "
+            f"{n_label(meta.get('odd_n', 0))}); ✗ marks a case where at least one frame failed, with the "
+            "first failure: max it (DIVERGED_ITS), breakdown, indef. PC, NaN/Inf, exception, true res. "
+            "(converged but ||b - A x|| above 10 × rtol after removing the null-space part). No warm-up.",
+            md_table(["Case"] + methods, table),
+            _inconsistent_note(rows),
+            "Cases: " + "; ".join(f"**{k}**: {v}" for k, v in STRESS) + ".",
+            image(CHART, "Stability map"),
+        ]
+        if fails:
+            parts += ["Failures:", md_table(["Method", "Case", "N", "seed", "failure", "its", "true res.", "error"],
+                                            fails, left=2)]
+        return "\n\n".join(p for p in parts if p)
+
+    def charts(self, res, out):
+        return [chart(res, out)]
+
+
+STUDY = Stability()

@@ -1,0 +1,24 @@
+"""Setup-time checks shared by the preconditioner variants: is M finite and positive on random vectors?"""
+import numpy as np
+
+
+def min_rayleigh(apply, n: int, probes: int = 8, seed: int = 0) -> float:
+    """Smallest Rayleigh quotient ``r^T M r / r^T r`` over random probes (< 0 proves M indefinite)."""
+    rng = np.random.default_rng(seed)
+    vals = []
+    for _ in range(probes):
+        r = rng.standard_normal(n)
+        vals.append(float(r @ apply(r) / (r @ r)))
+    return min(vals)
+
+
+def probe_reason(apply, n: int, probes: int, name: str) -> str:
+    """Empty when ``probes`` random Rayleigh quotients of M are finite and positive, else why not."""
+    if not probes:
+        return ""
+    lo = min_rayleigh(apply, n, probes)
+    if not np.isfinite(lo):
+        return f"{name} apply is not finite"
+    if lo <= 0:
+        return f"Rayleigh probe found M indefinite (min r^T M r / r^T r = {lo:.3e})"
+    return ""

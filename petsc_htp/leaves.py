@@ -1,0 +1,158 @@
+"""Leaves: groups of about ``leaf`` rows that a two-level preconditioner treats as blocks.
+
+A :class:`Leaves` is a row permutation plus the offsets of contiguous groups in
+it: leaf k is the rows ``perm[offsets[k]:offsets[k + 1]]`` of the caller's matrix.
+Contiguous chunks of an ordering (Morton, RCM, the given order) or METIS parts.
+"""
+from __future__ import annotations
+
+import math
+import numbers
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .ordering import _check_square, choose_ordering
+
+LAYOUTS = ("auto", "morton", "metis", "natural", "rcm")
+
+
+@dataclass(frozen=True, eq=False)
+class Leaves:
+    """A permutation grouping each leaf's rows contiguously.
+
+    Attributes
+    ----------
+    perm : numpy.ndarray of int64, shape (N,)
+        ``A[perm][:, perm]`` puts each leaf's rows contiguously.
+    offsets : numpy.ndarray of int64, shape (K + 1,)
+        Leaf k holds permuted rows ``offsets[k]:offsets[k + 1]``.
+    kind : str
+        How the leaves were made ('morton', 'metis', ...).
+    build_ms : float
+        Time to make them (ordering or METIS), in ms.
+    """
+
+    perm: np.ndarray
+    offsets: np.ndarray
+    kind: str
+    build_ms: float = 0.0
+
+    def __post_init__(self):
+        perm = np.asarray(self.perm, dtype=np.int64)
+        offsets = np.asarray(self.offsets, dtype=np.int64)
+        n = perm.size
+        if n == 0 or np.any(np.sort(perm) != np.arange(n)):
+            raise ValueError(f"leaves: perm must be a permutation of 0..N-1 (N >= 1), got size {n}")
+        if offsets.ndim != 1 or offsets.size < 2 or offsets[0] != 0 or offsets[-1] != n \
+                or np.any(np.diff(offsets) <= 0):
+            raise ValueError(f"leaves: offsets must rise strictly from 0 to N={n}")
+        object.__setattr__(self, "perm", perm)
+        object.__setattr__(self, "offsets", offsets)
+
+    @property
+    def n(self) -> int:
+        """Number of rows N."""
+        return int(self.perm.size)
+
+    @property
+    def n_leaves(self) -> int:
+        """Number of leaves K."""
+        return int(self.offsets.size - 1)
+
+    @property
+    def sizes(self) -> np.ndarray:
+        """Rows per leaf, shape (K,)."""
+        return np.diff(self.offsets)
+
+    @property
+    def max_size(self) -> int:
+        """Largest leaf (the padded leaf size)."""
+        return int(self.sizes.max())
+
+
+def _positive_int(value, name):
+    """Return ``value`` as a positive int, or raise ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def contiguous_leaves(n, leaf=128, perm=None, kind="natural", build_ms=0.0) -> Leaves:
+    """Cut an ordering into ceil(n / leaf) contiguous leaves of near-equal size.
+
+    Parameters
+    ----------
+    n : int
+        Number of rows.
+    leaf : int
+        Target leaf size.
+    perm : array_like of int, optional
+        The ordering (identity when None).
+    kind : str
+        Name recorded in the result.
+    """
+    n, leaf = _positive_int(n, "n"), _positive_int(leaf, "leaf")
+    perm = np.arange(n, dtype=np.int64) if perm is None else perm
+    k = math.ceil(n / leaf)
+    return Leaves(perm, (np.arange(k + 1, dtype=np.int64) * n) // k, kind, build_ms)
+
+
+def _metis_graph(A):
+    """xadj, adjncy of the symmetric graph of ``A`` without self loops."""
+    C = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
+    S = (C + C.T).tocoo()
+    off = S.row != S.col
+    G = sp.csr_matrix((S.data[off], (S.row[off], S.col[off])), shape=A.shape)
+    return G.indptr, G.indices
+
+
+def metis_leaves(A, leaf=128, seed=0) -> Leaves:
+    """METIS k-way parts of A's graph, ceil(n / leaf) of them, as leaves.
+
+    The partition is deterministic for a given ``seed``; empty parts are dropped
+    and rows keep their relative order within a part.
+    """
+    import pymetis
+
+    A = _check_square(A)
+    leaf = _positive_int(leaf, "leaf")
+    n = _positive_int(A.shape[0], "the size of A")
+    t0 = time.perf_counter()
+    nparts = math.ceil(n / leaf)
+    if nparts == 1:
+        parts = np.zeros(n, dtype=np.int64)
+    else:
+        _, parts = pymetis.part_graph(nparts, pymetis.CSRAdjacency(*_metis_graph(A)),
+                                      options=pymetis.Options(seed=int(seed)))
+        parts = np.asarray(parts, dtype=np.int64)
+    perm = np.argsort(parts, kind="stable")
+    sizes = np.bincount(parts, minlength=nparts)
+    offsets = np.concatenate(([0], np.cumsum(sizes[sizes > 0])))
+    return Leaves(perm, offsets, "metis", (time.perf_counter() - t0) * 1e3)
+
+
+def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
+    """Leaves for ``A`` by layout.
+
+    Parameters
+    ----------
+    A : scipy.sparse matrix, shape (N, N)
+    coords : array_like, shape (N, 2), optional
+        Row coordinates (needed for 'morton').
+    layout : {'auto', 'morton', 'metis', 'natural', 'rcm'}
+        'auto': Morton chunks when ``coords`` are given (keeping an order that
+        already is Morton), else METIS parts.
+    leaf : int
+        Target leaf size.
+    """
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
+    A = _check_square(A)
+    if layout == "metis" or (layout == "auto" and coords is None):
+        return metis_leaves(A, leaf)
+    t0 = time.perf_counter()
+    perm, name = choose_ordering(A, coords, layout)
+    return contiguous_leaves(A.shape[0], leaf, perm, name, (time.perf_counter() - t0) * 1e3)

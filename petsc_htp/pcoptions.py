@@ -1,0 +1,92 @@
+"""HTPPC's options: one small dataclass read from a PETSc options prefix (``<prefix>htp_*``)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from . import checkpoint
+
+ORDERINGS = ("auto", "morton", "rcm", "natural", "metis")
+VARIANTS = ("paper", "twolevel")
+COARSE = ("const", "eig")
+FALLBACKS = ("none", "jacobi")
+
+# Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
+PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf")
+
+HELP = {
+    "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
+    "checkpoint": "HTP checkpoint file (empty: the shipped petsc_htp/checkpoints/htp_default.pt)",
+    "device": "torch device for the network and the apply: cpu, cuda[:k] or auto",
+    "ordering": "auto (Morton with coordinates, else RCM for paper and METIS for twolevel), morton, rcm, "
+                "natural or metis (twolevel only)",
+    "leaf": "twolevel: rows per leaf (the paper's leaf size is the network's)",
+    "coarse": "twolevel coarse space: const (r=1) or eig (local Neumann eigenvectors)",
+    "coarse_rank": "twolevel: coarse vectors per leaf r",
+    "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
+    "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
+    "threads": "torch CPU threads used during HTP's setup and apply (restored afterwards)",
+    "fallback": "none or jacobi: apply D^-1 when M is non-finite or found indefinite at setup",
+    "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check)",
+}
+
+
+@dataclass(frozen=True)
+class HTPOptions:
+    """The ``-htp_*`` options of one HTPPC (defaults as shown by ``-help``)."""
+
+    variant: str = "paper"
+    checkpoint: str = ""
+    device: str = "auto"
+    ordering: str = "auto"
+    leaf: int = 128
+    coarse: str = "eig"
+    coarse_rank: int = 4
+    shift: float = 0.0
+    spd_guard: bool = True
+    threads: int = 1
+    fallback: str = "none"
+    probe: int = 4
+
+    @classmethod
+    def from_petsc(cls, prefix: str) -> "HTPOptions":
+        """Read and validate ``-<prefix>htp_*`` from PETSc's options database."""
+        from petsc4py import PETSc
+
+        db = PETSc.Options(prefix + "htp_")
+        get = {str: db.getString, float: db.getReal, int: db.getInt, bool: db.getBool}
+        values = {f.name: get[type(f.default)](f.name, f.default) for f in fields(cls)}
+        return cls(**values).validate("-" + prefix + "htp_")
+
+    def validate(self, opt: str = "-htp_") -> "HTPOptions":
+        """Raise ValueError naming the first bad option."""
+        for name, allowed in (("variant", VARIANTS), ("ordering", ORDERINGS), ("coarse", COARSE),
+                              ("fallback", FALLBACKS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{opt}{name} {getattr(self, name)!r} unknown; use one of {', '.join(allowed)}")
+        if self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:"):
+            raise ValueError(f"{opt}device {self.device!r} unknown; use cpu, cuda or auto")
+        if not math.isfinite(self.shift) or self.shift < 0:
+            raise ValueError(f"{opt}shift must be a finite non-negative number, got {self.shift}")
+        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("probe", 0)):
+            if getattr(self, name) < low:
+                raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
+        if self.variant == "paper" and self.ordering == "metis":
+            raise ValueError(f"{opt}ordering metis needs {opt}variant twolevel (the paper's leaves are "
+                             "contiguous blocks of one ordering)")
+        return self
+
+    def pattern_key(self) -> tuple:
+        """The options a new analysis depends on."""
+        return tuple(getattr(self, name) for name in PATTERN_FIELDS)
+
+    def help_lines(self, opt: str) -> list:
+        """``-help`` lines: option, type, current value, default, meaning."""
+        out = []
+        for f in fields(self):
+            now, default = getattr(self, f.name), f.default
+            if f.name == "checkpoint":
+                now, default = now or checkpoint.DEFAULT, checkpoint.DEFAULT
+            kind = {str: "string", float: "real", int: "int", bool: "bool"}[type(f.default)]
+            out.append(f"  {opt}{f.name} <{kind}> <now {now} : formerly {default}>: {HELP[f.name]} (HTPPC)")
+        return out

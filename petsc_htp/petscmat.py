@@ -1,0 +1,162 @@
+"""The PETSc side of the data: geometry attached to a Mat, and a sequential Mat read as scipy CSR."""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec"]
+
+COORDS_ATTR = "petsc_htp_coords"
+DENSITY_ATTR = "petsc_htp_density"
+VERSION_ATTR = "petsc_htp_attached"     # bumped by every attach()
+_ATTACHED = itertools.count(1)
+
+
+def _local_rows(mat, values, what, width):
+    """Rows of ``values`` owned by this rank of ``mat`` (given global or local arrays)."""
+    arr = np.ascontiguousarray(values, dtype=np.float64)
+    n_global = mat.getSize()[0]
+    start, end = mat.getOwnershipRange()
+    shape_tail = () if width is None else (width,)
+    if arr.shape == (n_global, *shape_tail):
+        return arr[start:end].copy()
+    if arr.shape == (end - start, *shape_tail):
+        return arr.copy()
+    raise ValueError(f"{what} must have shape ({n_global}{', %d' % width if width else ''}) (global) or "
+                     f"({end - start}{', %d' % width if width else ''}) (this rank's rows), got {arr.shape}")
+
+
+def attach(mat, coords=None, density=None):
+    """Store per-row geometry on a PETSc Mat for :class:`HTPPC`.
+
+    Parameters
+    ----------
+    mat : petsc4py.PETSc.Mat
+        The preconditioning matrix (sequential or distributed AIJ).
+    coords : array_like, shape (N, 2) or (n_local, 2), optional
+        Point coordinates of the rows (global array, or this rank's rows).
+        With coordinates HTP uses the Morton ordering (or keeps rows already in
+        Morton order) and geometric features.
+    density : array_like, shape (N,) or (n_local,), optional
+        Per-row density (material coefficient) feature.
+
+    The arrays are kept with ``Mat.setAttr`` in the PETSc object's own Python
+    dictionary, so they survive new Python wrappers of the same Mat (e.g. the
+    one ``pc.getOperators()`` returns). For a parallel matrix this rank's rows
+    are also attached to its diagonal block (``Mat.getDiagonalBlock``), which
+    is the matrix PETSc's one-block-per-rank block Jacobi hands to a
+    ``-sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC``. Sub-matrices
+    that PETSc extracts itself (several blocks per rank) carry nothing, and HTP
+    falls back to matrix-only features and RCM there. Passing ``None`` removes
+    a previously attached array. The Mat's object state is increased, so a KSP
+    that was already set up runs HTP's setup again at its next solve. Call it
+    on every rank of a parallel matrix. Returns ``mat``.
+    """
+    local = {}
+    for attr, values, what, width in ((COORDS_ATTR, coords, "coords", 2), (DENSITY_ATTR, density, "density", None)):
+        local[attr] = None if values is None else _local_rows(mat, values, what, width)
+        if local[attr] is not None and not np.all(np.isfinite(local[attr])):
+            raise ValueError(f"{what} must be finite")
+    targets = [mat]
+    if mat.getComm().getSize() > 1:
+        try:
+            targets.append(mat.getDiagonalBlock())
+        except PETSc.Error:
+            pass
+    version = next(_ATTACHED)
+    for target in targets:
+        for attr, arr in local.items():
+            target.setAttr(attr, arr)
+        target.setAttr(VERSION_ATTR, version)
+        target.stateIncrease()          # PETSc then sets up the preconditioner again
+    return mat
+
+
+def attached(mat):
+    """(coords, density) stored by :func:`attach` on ``mat``, each possibly None."""
+    return mat.getAttr(COORDS_ATTR), mat.getAttr(DENSITY_ATTR)
+
+
+def read_csr(mat) -> sp.csr_matrix:
+    """This (sequential) matrix as a scipy CSR matrix."""
+    if mat.getComm().getSize() > 1:
+        raise ValueError(
+            f"HTPPC needs a sequential matrix but got a parallel '{mat.getType()}' matrix on "
+            f"{mat.getComm().getSize()} ranks; precondition each rank's block with "
+            "-pc_type bjacobi -sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC")
+    rows, cols = mat.getSize()
+    if rows != cols:
+        raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
+    if rows == 0:
+        raise ValueError("HTPPC got an empty matrix (0 x 0)")
+    src = mat
+    if mat.getType() not in ("seqaij", "mpiaij"):
+        try:
+            src = mat.convert("seqaij")
+        except PETSc.Error as exc:
+            raise ValueError(f"HTPPC needs an assembled AIJ matrix; cannot convert a "
+                             f"'{mat.getType()}' matrix to seqaij") from exc
+    indptr, indices, data = src.getValuesCSR()
+    A = sp.csr_matrix((np.asarray(data, dtype=np.float64).copy(), np.asarray(indices).copy(),
+                       np.asarray(indptr).copy()), shape=(rows, cols))
+    if A.nnz == 0:
+        raise ValueError(f"HTPPC got an empty matrix ({rows} x {cols} with no nonzeros)")
+    bad = int(np.count_nonzero(~np.isfinite(A.data)))
+    if bad:
+        raise ValueError(f"matrix contains {bad} NaN or Inf entries; HTPPC needs a finite SPD matrix")
+    return A
+
+
+def _ownership_range(n, size, rank):
+    """Rows owned by ``rank`` under PETSc's default (PETSC_DECIDE) split."""
+    base, extra = divmod(n, size)
+    start = rank * base + min(rank, extra)
+    return start, start + base + (rank < extra)
+
+
+def frame_mat(frame, comm=None):
+    """Distributed PETSc AIJ copy of a frame's ``A`` with the constant null space.
+
+    Parameters
+    ----------
+    comm : petsc4py.PETSc.Comm or mpi4py communicator, optional
+        Defaults to ``PETSc.COMM_WORLD``; each rank inserts only its rows.
+
+    Returns
+    -------
+    petsc4py.PETSc.Mat
+    """
+    comm = PETSc.COMM_WORLD if comm is None else PETSc.Comm(comm)
+    start, end = _ownership_range(frame.n, comm.getSize(), comm.getRank())
+    local = frame.A[start:end]
+    indptr = local.indptr.astype(PETSc.IntType)
+    indices = local.indices.astype(PETSc.IntType)
+    row_nnz = np.diff(indptr)
+    in_block = (indices >= start) & (indices < end)
+    row_of_entry = np.repeat(np.arange(end - start), row_nnz)
+    d_nnz = np.bincount(row_of_entry[in_block], minlength=end - start)
+    d_nnz = d_nnz.astype(PETSc.IntType)
+    mat = PETSc.Mat().createAIJ(
+        size=((end - start, frame.n), (end - start, frame.n)),
+        nnz=(d_nnz, row_nnz - d_nnz),
+        comm=comm,
+    )
+    # Set on every rank: petsc4py preallocates ranks without rows differently,
+    # and a flag that differs across ranks deadlocks MPIAIJ assembly.
+    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    mat.setValuesCSR(indptr, indices, local.data)
+    mat.assemble()
+    mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=comm))
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return mat
+
+
+def frame_vec(frame, mat):
+    """Rank-local part of a frame's ``b`` in a Vec laid out like ``mat``'s rows."""
+    vec = mat.createVecs("left")
+    start, end = vec.getOwnershipRange()
+    vec.setArray(frame.b[start:end])
+    return vec

@@ -1,0 +1,183 @@
+"""Two-phase flow: the physics (petsc_htp.flow) and the PETSc driver (examples/multiphase_flow.py)."""
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.sparse.linalg import cg
+
+from petsc_htp.flow import Flow
+from petsc_htp.morton import morton_code
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "multiphase_flow.py"
+FIELDS = {"frame", "method", "n", "its", "setup_ms", "solve_ms", "reason", "relres", "div_before",
+          "div_after", "rebuilt", "pc_setups", "numeric_setups", "physics_ms", "update_ms",
+          "substeps", "mass_heavy", "mass_light"}
+MASS_RTOL = 1e-10      # phase masses over a run (level set with global volume correction)
+RTOL = 1e-8            # options/common.opts
+
+
+def run_example(out, *args):
+    """Run the example from the repository root with -quick; returns the CompletedProcess."""
+    return subprocess.run([sys.executable, str(EXAMPLE), "-quick", "-out", str(out), *args],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def read_records(path):
+    with open(path) as handle:
+        return [json.loads(line) for line in handle]
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """Records of -quick runs with cg_gamg (plus -animate) and cg_jacobi."""
+    runs = {}
+    for method, extra in (("cg_gamg", ["-animate"]), ("cg_jacobi", [])):
+        out = tmp_path_factory.mktemp(method)
+        proc = run_example(out, "-options_file", f"options/{method}.opts", *extra)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        runs[method] = (out, read_records(out / f"{method}.jsonl"))
+    return runs
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["cg_gamg", "cg_jacobi"])
+def test_quick_run_records(quick, method):
+    out, records = quick[method]
+    assert [r["frame"] for r in records] == list(range(6))
+    for r in records:
+        assert set(r) == FIELDS
+        assert r["method"] == method and r["n"] > 900
+        assert r["reason"].startswith("CONVERGED") and r["its"] > 0 and r["rebuilt"]
+        assert all(math.isfinite(v) for v in r.values() if isinstance(v, float))
+        assert r["relres"] <= 1.5 * RTOL
+    assert (out / f"{method}.png").stat().st_size > 0
+    if method == "cg_gamg":
+        assert (out / "cg_gamg.gif").read_bytes()[:6] == b"GIF89a"
+
+
+@pytest.mark.slow
+def test_projection_divergence_at_solver_tolerance(quick):
+    # After projection div u = -(dt/dx^2) r, so max|div| <= relres * sqrt(N) * max|div before|.
+    for _, records in quick.values():
+        for r in records:
+            assert r["div_after"] <= 1.01 * r["relres"] * math.sqrt(r["n"]) * r["div_before"]
+            assert r["div_after"] < 1e-5 * r["div_before"]
+
+
+@pytest.mark.slow
+def test_phase_masses_conserved(quick):
+    heavy, light = Flow(32, 32, density_ratio=1000.0).phase_mass()
+    for _, records in quick.values():
+        for r in records:
+            assert abs(r["mass_heavy"] - heavy) <= MASS_RTOL * heavy
+            assert abs(r["mass_light"] - light) <= MASS_RTOL * light
+
+
+@pytest.mark.slow
+def test_reuse_every_3_rebuilds_twice(tmp_path):
+    proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", "-reuse_every", "3",
+                       "-reuse_growth", "100")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    records = read_records(tmp_path / "cg_jacobi.jsonl")
+    assert [r["rebuilt"] for r in records] == [True, False, False, True, False, False]
+    assert [r["pc_setups"] for r in records] == [1, 0, 0, 1, 0, 0]     # PETSc's PCSetUp events
+    assert all(r["reason"].startswith("CONVERGED") for r in records)
+
+
+@pytest.mark.slow
+def test_reuse_growth_triggers_rebuild(tmp_path):
+    proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", "-reuse_every", "100",
+                       "-reuse_growth", "1")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    records, ref = read_records(tmp_path / "cg_jacobi.jsonl"), None
+    for prev, rec in zip(records, records[1:]):
+        ref = prev["its"] if prev["rebuilt"] else ref
+        assert rec["rebuilt"] == (prev["its"] > ref)
+    assert any(r["rebuilt"] for r in records[1:])
+
+
+@pytest.mark.slow
+def test_compare_draws_one_chart(tmp_path):
+    proc = run_example(tmp_path, "-frames", "2", "-compare", "options/cg_icc.opts,options/cg_none.opts")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert (tmp_path / "compare.png").stat().st_size > 0
+    for method in ("cg_icc", "cg_none"):
+        assert [r["method"] for r in read_records(tmp_path / f"{method}.jsonl")] == [method] * 2
+        assert f"{method}: 2 frames" in proc.stdout
+
+
+@pytest.mark.slow
+def test_failed_solve_exits_nonzero(tmp_path):
+    proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", "-ksp_max_it", "3", "-frames", "2")
+    assert proc.returncode == 1
+    assert "DIVERGED_ITS" in proc.stderr
+    assert read_records(tmp_path / "cg_jacobi.jsonl")[-1]["reason"] == "DIVERGED_ITS"
+
+
+@pytest.mark.parametrize("args, message", [(["-nx", "0"], "nx must be an integer >= 8"),
+                                           (["-reuse_every", "-1"], "-reuse_every must be >= 0"),
+                                           (["-density_ratio", "0.5"], "density_ratio must be")])
+def test_bad_options(tmp_path, args, message):
+    proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", *args)
+    assert proc.returncode == 2
+    assert message in proc.stderr
+
+
+# ------------------------------------------------------------- physics only
+
+def step(sim, p):
+    """One frame with scipy's CG to 1e-12; returns (A, b, p)."""
+    sim.advance()
+    A, b, _, _ = sim.system()
+    p, info = cg(A, b, x0=p, rtol=1e-12, maxiter=5000)
+    assert info == 0
+    sim.project(p)
+    return A, b, p
+
+
+def test_pattern_fixed_and_morton_ordered():
+    sim = Flow(24, 20, density_ratio=100.0, seed=3)
+    p, patterns = np.zeros(sim.n), []
+    for _ in range(4):
+        A, _, p = step(sim, p)
+        patterns.append((A.indptr.copy(), A.indices.copy()))
+        assert abs(A - A.T).max() == 0 and np.allclose(A @ np.ones(sim.n), 0)
+    for indptr, indices in patterns[1:]:
+        assert np.array_equal(indptr, patterns[0][0]) and np.array_equal(indices, patterns[0][1])
+    assert sim.n < 24 * 20                                 # the ledge's cells are not unknowns
+    assert np.all(np.diff(morton_code(sim.ix, sim.iy).astype(np.int64)) > 0)
+
+
+def test_disconnected_regions_are_consistent():
+    solid = np.zeros((16, 16), dtype=bool)
+    solid[:, 8] = True
+    sim = Flow(16, 16, solid=solid)
+    sim.advance()
+    _, b, _, density = sim.system()
+    assert sim.n_regions == 2
+    for region in range(2):
+        assert abs(b[sim.regions == region].sum()) < 1e-12 * np.abs(b).sum()
+    assert density.min() == pytest.approx(1.0) and density.max() == pytest.approx(1000.0)
+
+
+def test_heavy_blob_falls():
+    sim = Flow(32, 32, density_ratio=1000.0)
+    heavy_height = lambda: np.average(sim.coords[:, 1], weights=sim.density() - 1.0)
+    start, p = heavy_height(), np.zeros(sim.n)
+    for _ in range(8):
+        p = step(sim, p)[2]
+    assert heavy_height() < start - 0.01
+    assert sim.max_divergence() < 1e-8
+
+
+@pytest.mark.parametrize("kwargs", [{"nx": 4, "ny": 32}, {"nx": 32, "ny": 32.5},
+                                    {"nx": 32, "ny": 32, "density_ratio": float("nan")},
+                                    {"nx": 32, "ny": 32, "solid": np.ones((32, 32), bool)}])
+def test_flow_rejects_bad_arguments(kwargs):
+    with pytest.raises(ValueError):
+        Flow(**kwargs)

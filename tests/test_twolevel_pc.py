@@ -1,0 +1,153 @@
+"""The two-level variant inside real PETSc KSPs: bare permuted matrices, other operator families, any KSP."""
+import itertools
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+pytest.importorskip("petsc4py")
+from petsc4py import PETSc  # noqa: E402
+
+import petsc_htp  # noqa: E402
+from petsc_htp.bench.studies.stability import problems as stability_problems  # noqa: E402
+from petsc_htp.checks import min_rayleigh  # noqa: E402
+from petsc_htp.dataset import load_dataset  # noqa: E402
+from petsc_htp.leaves import choose_leaves  # noqa: E402
+from petsc_htp.methods import reason_name  # noqa: E402
+from petsc_htp.twolevel import analyse, factor  # noqa: E402
+
+_PREFIXES = itertools.count()
+
+
+def petsc_mat(A, null=True):
+    """A SeqAIJ copy of scipy ``A`` (constant null space attached when ``null``)."""
+    A = sp.csr_matrix(A)
+    mat = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+    mat.assemble()
+    if null:
+        mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=PETSc.COMM_SELF))
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return mat
+
+
+def solve(A, b, **opts):
+    """Solve with a fresh KSP under its own prefix; (reason, iterations, true relative residual, ksp)."""
+    prefix = f"tl{next(_PREFIXES)}_"
+    db = PETSc.Options(prefix)
+    base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 2000,
+            "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_variant": "twolevel"}
+    for k, v in {**base, **opts}.items():
+        db.setValue(k, v)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(A, A)
+    ksp.setFromOptions()
+    x, rhs = A.createVecs()
+    rhs.setArray(b)
+    x.set(0)
+    ksp.solve(rhs, x)
+    r = rhs.duplicate()
+    A.mult(x, r)
+    r.aypx(-1, rhs)
+    return ksp.getConvergedReason(), ksp.getIterationNumber(), r.norm() / rhs.norm(), ksp
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return load_dataset(4096, "test", count=2)
+
+
+def permuted(frame, seed):
+    """The frame's matrix and rhs in a random row order."""
+    p = np.random.default_rng(seed).permutation(frame.n)
+    return frame.A[p][:, p].tocsr(), frame.b[p]
+
+
+@pytest.mark.parametrize("coarse", ["eig", "const"])
+def test_bare_permuted_matrix(frames, coarse):
+    bars = {"eig": 35, "const": 60}
+    for k, frame in enumerate(frames):
+        A, b = permuted(frame, k)
+        mat = petsc_mat(A)
+        reason, its, relres, ksp = solve(mat, b, htp_coarse=coarse)
+        assert reason > 0 and relres <= 1.01e-8, reason_name(reason)
+        assert its <= bars[coarse], its
+        ctx = ksp.getPC().getPythonContext()
+        assert ctx.setup.analysis.leaves.kind.startswith("metis")
+
+
+def test_attached_geometry_uses_morton_leaves_and_same_iterations(frames):
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    _, bare_its, _, _ = solve(mat, frame.b)
+    petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
+    reason, its, relres, ksp = solve(mat, frame.b)
+    assert reason > 0 and relres <= 1.01e-8 and its <= 35
+    assert abs(its - bare_its) <= 5
+    assert ksp.getPC().getPythonContext().setup.analysis.leaves.kind.startswith("morton")
+
+
+def laplacian_3d(m, shift=0.0):
+    """7-point Dirichlet-free (Neumann) Laplacian on an m^3 grid plus ``shift`` on the diagonal."""
+    t = sp.diags([-np.ones(m - 1), 2 * np.ones(m), -np.ones(m - 1)], [-1, 0, 1]).tolil()
+    t[0, 0] = t[-1, -1] = 1
+    eye = sp.eye(m)
+    L = sp.kron(sp.kron(t, eye), eye) + sp.kron(sp.kron(eye, t), eye) + sp.kron(sp.kron(eye, eye), t)
+    return sp.csr_matrix(L + shift * sp.eye(m ** 3))
+
+
+def test_other_operator_family_in_random_order():
+    rng = np.random.default_rng(3)
+    A = laplacian_3d(16, shift=1e-3)                       # 4096 rows, SPD
+    p = rng.permutation(A.shape[0])
+    A = A[p][:, p].tocsr()
+    b = rng.standard_normal(A.shape[0])
+    reason, its, relres, _ = solve(petsc_mat(A, null=False), b)
+    _, its_jacobi, _, _ = solve(petsc_mat(A, null=False), b, pc_type="jacobi")
+    assert reason > 0 and relres <= 1.01e-8
+    assert its <= 35 and its < its_jacobi / 3, (its, its_jacobi)
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_plain_gmres_reaches_the_requested_tolerance(frames, side):
+    """M is linear to working precision, so plain GMRES's residual is the real one.
+
+    Right preconditioning stops on the true residual ||b - A x||; left preconditioning
+    (PETSc's GMRES supports only the preconditioned norm there) on ||M (b - A x)||.
+    """
+    frame = frames[1]
+    A, b = permuted(frame, 7)
+    mat = petsc_mat(A)
+    reason, its, relres, ksp = solve(mat, b, ksp_type="gmres", ksp_pc_side=side, ksp_gmres_restart=100,
+                                     ksp_norm_type="preconditioned" if side == "left" else "unpreconditioned")
+    assert reason > 0 and its <= 40, reason_name(reason)
+    if side == "right":
+        assert relres <= 1.01e-8, relres
+    else:
+        M = ksp.getPC().getPythonContext().setup
+        x = ksp.getSolution().getArray()
+        assert np.linalg.norm(M.apply(b - A @ x)) / np.linalg.norm(M.apply(b)) <= 1.01e-8
+
+
+def test_values_change_reuses_the_analysis(frames):
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    _, its1, _, ksp = solve(mat, frame.b)
+    ctx = ksp.getPC().getPythonContext()
+    mat.scale(5.0)
+    rhs, x = mat.createVecs()
+    rhs.setArray(frame.b)
+    x.set(0)
+    ksp.solve(rhs, x)
+    assert (ctx.analysis_count, ctx.numeric_count) == (1, 2)
+    assert ksp.getConvergedReason() > 0 and abs(ksp.getIterationNumber() - its1) <= 1
+
+
+@pytest.mark.slow
+def test_min_rayleigh_positive_on_every_stability_case():
+    for prob in stability_problems(1024, 1, 4096, 1000):
+        frame = prob.frame
+        coords = frame.coords if prob.attach else None
+        for coarse, rank in (("eig", 4), ("const", 1)):
+            M = factor(analyse(frame.A, choose_leaves(frame.A, coords)), frame.A, coarse, rank)
+            assert min_rayleigh(M.apply, frame.n, probes=8) > 0, (prob.case, coarse)
