@@ -37,7 +37,6 @@ skips both. ``PETSc.Log`` events ``HTPSetup`` and ``HTPApply`` appear in
 """
 from __future__ import annotations
 
-import contextlib
 import time
 
 import numpy as np
@@ -60,17 +59,13 @@ def _event(name: str) -> PETSc.Log.Event:
     return _EVENTS[name]
 
 
-@contextlib.contextmanager
-def torch_threads(n: int):
-    """Run the block with ``n`` torch CPU threads and restore the process's setting afterwards."""
+def set_torch_threads(n: int) -> int | None:
+    """Set torch's process-wide CPU thread count to ``n``; return the previous count when it changed."""
     before = torch.get_num_threads()
-    if n != before:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        if n != before:
-            torch.set_num_threads(before)
+    if n == before:
+        return None
+    torch.set_num_threads(n)
+    return before
 
 
 class HTPPC:
@@ -109,6 +104,7 @@ class HTPPC:
         self._values = None
         self._coords = None
         self._csr = (None, None)
+        self.threads_note = ""
         self._help_shown = False
         self._ev_setup = _event("HTPSetup")
         self._ev_apply = _event("HTPApply")
@@ -137,27 +133,29 @@ class HTPPC:
         self._ev_setup.begin()
         try:
             self._values = None
-            with torch_threads(opts.threads):
-                A = read_csr(P)
-                pattern = (P.getId(), opts.pattern_key())
-                if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
-                        or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1]))):
-                    self._pattern = self.analysis = self.setup = None
-                    if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
-                        self.variant = VARIANTS[opts.variant](opts)
-                    self.analysis = self.variant.analyse(A, coords)
-                    self._coords = None if coords is None else coords.copy()
-                    self._csr = (A.indptr.copy(), A.indices.copy())
-                    self._pattern = pattern
-                    self.analysis_count += 1
-                self.variant.opts = opts
-                t0 = time.perf_counter()
-                self.setup = self.variant.numeric(self.analysis, A, density, self.setup)
-                self.setup_ms = 1e3 * (time.perf_counter() - t0)
-                self.numeric_count += 1
-                self.n = A.shape[0]
-                self.inv_diag = 1.0 / A.diagonal()
-                self._check(pc, opts)
+            changed = set_torch_threads(opts.threads)
+            if changed is not None:
+                self.threads_note = f"set process-wide to {opts.threads} by {self._opt(pc)}threads (was {changed})"
+            A = read_csr(P)                             # this rank's rows (the whole matrix on one)
+            pattern = (P.getId(), opts.pattern_key())
+            if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
+                    or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1]))):
+                self._pattern = self.analysis = self.setup = None
+                if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
+                    self.variant = VARIANTS[opts.variant](opts, pc.getOptionsPrefix() or "")
+                self.analysis = self.variant.analyse(P, A, coords)
+                self._coords = None if coords is None else coords.copy()
+                self._csr = (A.indptr.copy(), A.indices.copy())
+                self._pattern = pattern
+                self.analysis_count += 1
+            self.variant.opts = opts
+            t0 = time.perf_counter()
+            self.setup = self.variant.numeric(self.analysis, P, A, density, self.setup)
+            self.setup_ms = 1e3 * (time.perf_counter() - t0)
+            self.numeric_count += 1
+            self.n = A.shape[0]
+            self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
+            self._check(pc, opts)
             self._values = values
         finally:
             self._ev_setup.end()
@@ -189,8 +187,7 @@ class HTPPC:
             if self.fallback_active:
                 y.array_w[...] = self.inv_diag * r
             else:
-                with torch_threads(self.opts.threads):
-                    y.array_w[...] = self.setup.apply(r)
+                self.variant.apply(self.setup, x, y)
         finally:
             self._ev_apply.end()
 
@@ -211,7 +208,8 @@ class HTPPC:
         if self.setup is not None:
             out += ["  " + line for line in self.setup.describe()]
             out.append(f"  setups: {self.analysis_count} analyses (pattern), {self.numeric_count} numeric (values); "
-                       f"torch threads during setup and apply: {opts.threads}")
+                       f"torch threads: {torch.get_num_threads()}"
+                       + (f" ({self.threads_note})" if self.threads_note else ""))
             probe = f"{opts.probe} Rayleigh probes" if opts.probe else "no Rayleigh probe"
             if self.fallback_active:
                 out.append(f"  fallback: jacobi ACTIVE ({self.fallback_reason}); applying D^-1")

@@ -25,7 +25,7 @@ HELP = {
     "coarse_rank": "twolevel: coarse vectors per leaf r",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
-    "threads": "torch CPU threads used during HTP's setup and apply (restored afterwards)",
+    "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
     "fallback": "none or jacobi: apply D^-1 when M is non-finite or found indefinite at setup",
     "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check)",
 }

@@ -2,12 +2,14 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
+from scipy.sparse.csgraph import connected_components
 
-__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec"]
+__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace"]
 
 COORDS_ATTR = "petsc_htp_coords"
 DENSITY_ATTR = "petsc_htp_density"
@@ -81,12 +83,7 @@ def attached(mat):
 
 
 def read_csr(mat) -> sp.csr_matrix:
-    """This (sequential) matrix as a scipy CSR matrix."""
-    if mat.getComm().getSize() > 1:
-        raise ValueError(
-            f"HTPPC needs a sequential matrix but got a parallel '{mat.getType()}' matrix on "
-            f"{mat.getComm().getSize()} ranks; precondition each rank's block with "
-            "-pc_type bjacobi -sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC")
+    """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank)."""
     rows, cols = mat.getSize()
     if rows != cols:
         raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
@@ -94,15 +91,17 @@ def read_csr(mat) -> sp.csr_matrix:
         raise ValueError("HTPPC got an empty matrix (0 x 0)")
     src = mat
     if mat.getType() not in ("seqaij", "mpiaij"):
+        aij = "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
         try:
-            src = mat.convert("seqaij")
+            src = mat.convert(aij)
         except PETSc.Error as exc:
             raise ValueError(f"HTPPC needs an assembled AIJ matrix; cannot convert a "
-                             f"'{mat.getType()}' matrix to seqaij") from exc
+                             f"'{mat.getType()}' matrix to {aij}") from exc
+    start, end = mat.getOwnershipRange()
     indptr, indices, data = src.getValuesCSR()
     A = sp.csr_matrix((np.asarray(data, dtype=np.float64).copy(), np.asarray(indices).copy(),
-                       np.asarray(indptr).copy()), shape=(rows, cols))
-    if A.nnz == 0:
+                       np.asarray(indptr).copy()), shape=(end - start, cols))
+    if mat.getComm().tompi4py().allreduce(A.nnz) == 0:
         raise ValueError(f"HTPPC got an empty matrix ({rows} x {cols} with no nonzeros)")
     bad = int(np.count_nonzero(~np.isfinite(A.data)))
     if bad:
@@ -117,8 +116,35 @@ def _ownership_range(n, size, rank):
     return start, start + base + (rank < extra)
 
 
+def region_nullspace(mat, regions):
+    """Null space of a Neumann operator: the constant, or one unit indicator per connected region.
+
+    Parameters
+    ----------
+    mat : petsc4py.PETSc.Mat
+        Gives the communicator and this rank's rows.
+    regions : numpy.ndarray of int, shape (N,)
+        Region (0 .. R-1) of every global row.
+
+    Returns
+    -------
+    petsc4py.PETSc.NullSpace
+    """
+    comm = mat.getComm()
+    if regions.max(initial=0) == 0:
+        return PETSc.NullSpace().create(constant=True, comm=comm)
+    start, end = mat.getOwnershipRange()
+    vectors = []
+    for region in range(regions.max() + 1):
+        inside = regions == region
+        vec = mat.createVecLeft()
+        vec.setArray(inside[start:end] / math.sqrt(np.count_nonzero(inside)))
+        vectors.append(vec)
+    return PETSc.NullSpace().create(vectors=vectors, comm=comm)
+
+
 def frame_mat(frame, comm=None):
-    """Distributed PETSc AIJ copy of a frame's ``A`` with the constant null space.
+    """Distributed PETSc AIJ copy of a frame's ``A`` with its null space (one constant per connected region).
 
     Parameters
     ----------
@@ -149,7 +175,7 @@ def frame_mat(frame, comm=None):
     mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     mat.setValuesCSR(indptr, indices, local.data)
     mat.assemble()
-    mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=comm))
+    mat.setNullSpace(region_nullspace(mat, connected_components(frame.A, directed=False)[1]))
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     return mat
 

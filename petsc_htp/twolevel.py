@@ -528,6 +528,17 @@ class TwoLevel:
         return lines + ([f"leaf blocks: {self.leaf_note}"] if self.leaf_note else [])
 
 
+def coarse_space(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> torch.Tensor:
+    """The coarse basis P alone, (K, Lmax, r) in the padded leaf layout (no leaf inverses, no coarse operator).
+
+    Parameters as in :func:`factor`.
+    """
+    if coarse not in COARSE_KINDS:
+        raise ValueError(f"unknown coarse kind {coarse!r}; expected one of {', '.join(COARSE_KINDS)}")
+    data = _values(analysis, A)
+    return _coarse_basis(analysis, _blocks(analysis, data), data, coarse, rank, basis)
+
+
 def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> TwoLevel:
     """Per-values setup: leaf inverses, coarse space, Galerkin coarse operator and its inverse.
 

@@ -1,31 +1,32 @@
 """The preconditioner variants behind HTPPC, each a two-step setup: analysis (pattern) and numeric (values).
 
-A variant is a class constructed from :class:`~petsc_htp.pcoptions.HTPOptions` with
+A variant is a class constructed from :class:`~petsc_htp.pcoptions.HTPOptions` and the PC's
+options prefix, with
 
-- ``analyse(A, coords)``: the per-pattern step (ordering, leaves, structure), returning an object
-  with ``analysis_ms``;
-- ``numeric(analysis, A, density, previous)``: the per-values step, returning the setup object
-  (``apply(r)``, ``check(probes)``, ``describe()``, ``setup_ms``); ``previous`` is the last setup
-  of the same analysis, whose buffers it may reuse;
+- ``analyse(mat, A, coords)``: the per-pattern step (ordering, leaves, structure) on the PETSc Mat
+  and ``A``, this rank's rows as scipy CSR, returning an object with ``analysis_ms``;
+- ``numeric(analysis, mat, A, density, previous)``: the per-values step, returning the setup object
+  (``check(probes)``, ``describe()``, ``nbytes``); ``previous`` is the last setup of the same
+  analysis, whose buffers it may reuse;
+- ``apply(setup, x, y)``: y = M x on PETSc Vecs;
+- ``parallel``: whether it takes a matrix distributed over several ranks;
 - ``model``: a line naming the model, or None.
 
 A new variant is one class here and its name in :data:`VARIANTS`.
 """
 from __future__ import annotations
 
-import dataclasses
-import time
-
-from . import twolevel
+from . import twolevelpc
 from .checkpoint import DEFAULT
 from .inference import HTP, resolve_device
-from .leaves import choose_leaves
 
 
 class Paper:
-    """The paper's HTP: the network emits the H-matrix factors of M (float32 apply)."""
+    """The paper's HTP: the network emits the H-matrix factors of M (float32 apply); one rank."""
 
-    def __init__(self, opts):
+    parallel = False
+
+    def __init__(self, opts, prefix=""):
         self.opts = opts
         self.htp = HTP.cached(opts.checkpoint or None, opts.device)
         cfg = self.htp.net.cfg
@@ -33,35 +34,52 @@ class Paper:
                       f"highways={'yes' if cfg.highways else 'no'}; {self.htp.net.n_params()} parameters; "
                       f"device {self.htp.device}; checkpoint {opts.checkpoint or 'shipped ' + str(DEFAULT)}")
 
-    def analyse(self, A, coords):
+    def analyse(self, mat, A, coords):
         """Ordering, partition and structural features."""
+        if mat.getComm().getSize() > 1:
+            raise ValueError(
+                f"-htp_variant paper needs a sequential matrix but got a parallel '{mat.getType()}' matrix on "
+                f"{mat.getComm().getSize()} ranks; use -htp_variant twolevel (a global coarse space), or "
+                "precondition each rank's block with -pc_type bjacobi -sub_pc_type python "
+                "-sub_pc_python_type petsc_htp.HTPPC")
         return self.htp.analyse(A, coords, self.opts.ordering)
 
-    def numeric(self, analysis, A, density, previous):
+    def numeric(self, analysis, mat, A, density, previous):
         """Network, factors and SPD guard."""
         return self.htp.numeric(analysis, A, density, self.opts.shift, self.opts.spd_guard, into=previous)
 
+    @staticmethod
+    def apply(setup, x, y):
+        """y = M x through the float32 torch apply."""
+        y.array_w[...] = setup.apply(x.array_r)
+
 
 class TwoLevel:
-    """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64, SPD)."""
+    """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64, SPD), from
+    PETSc parts (:mod:`petsc_htp.twolevelpc`), on any number of ranks."""
 
     model = None
+    parallel = True
 
-    def __init__(self, opts):
-        self.opts = opts
-        self.device = resolve_device(opts.device)
+    def __init__(self, opts, prefix=""):
+        self.opts, self.prefix = opts, prefix
+        self.device = resolve_device("cpu" if opts.device == "auto" else opts.device)
 
-    def analyse(self, A, coords):
-        """Leaves (Morton with coordinates, else METIS), block index maps, connected components."""
-        t0 = time.perf_counter()
-        leaves = choose_leaves(A, coords, self.opts.ordering, self.opts.leaf)
-        analysis = twolevel.analyse(A, leaves, self.device)
-        return dataclasses.replace(analysis, analysis_ms=1e3 * (time.perf_counter() - t0))
+    def analyse(self, mat, A, coords):
+        """Leaves of each rank's rows (Morton with coordinates, else METIS) and their index sets."""
+        return twolevelpc.analyse(mat, A, coords, self.opts.ordering, self.opts.leaf, self.device)
 
-    def numeric(self, analysis, A, density, previous):
-        """Leaf inverses, coarse space, Galerkin coarse operator."""
-        return twolevel.factor(analysis, A, self.opts.coarse, 1 if self.opts.coarse == "const" else
-                               self.opts.coarse_rank)
+    def numeric(self, analysis, mat, A, density, previous):
+        """Coarse space, W^T A W and its Cholesky, the leaves' Cholesky factors."""
+        if previous is not None:
+            previous.destroy()
+        rank = 1 if self.opts.coarse == "const" else self.opts.coarse_rank
+        return twolevelpc.Composed(analysis, mat, A, self.opts.coarse, rank, self.prefix + "htp_")
+
+    @staticmethod
+    def apply(setup, x, y):
+        """y = M x in PETSc."""
+        setup.mult(x, y)
 
 
 VARIANTS = {"paper": Paper, "twolevel": TwoLevel}

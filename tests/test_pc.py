@@ -267,14 +267,16 @@ def test_setup_reruns_only_what_changed(frame, tiny_ckpt, options):
     assert reason > 0 and counts(ctx) == (2, 5) and ctx.setup.ordering == "rcm"
 
 
-def test_threads_option_leaves_torch_setting_alone(frame, tiny_ckpt, options):
+def test_threads_option_sets_torch_and_says_so(frame, tiny_ckpt, options):
     import torch
     before = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
         A = frame_mat(frame)
-        reason, _, _ = solve(make_ksp(A, options(**htp_opts(tiny_ckpt))), A, frame.b)   # -htp_threads 1
-        assert reason > 0 and torch.get_num_threads() == 2
+        ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))          # -htp_threads 1
+        reason, _, _ = solve(ksp, A, frame.b)
+        assert reason > 0 and torch.get_num_threads() == 1
+        assert "torch threads: 1 (set process-wide to 1 by -t" in view_text(ksp)
     finally:
         torch.set_num_threads(before)
 
