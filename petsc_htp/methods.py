@@ -143,9 +143,11 @@ class Loaded:
 
 
 def set_blocks(prefix: str, n: int, ranks: int = 1) -> int | None:
-    """Apply ``-<prefix>htp_bjacobi_leaf L``: ``-<prefix>pc_bjacobi_blocks max(ceil(N/L), ranks)`` unless set.
+    """Apply ``-<prefix>htp_bjacobi_leaf L``: ``-<prefix>pc_bjacobi_blocks max(ceil(N/L), ranks)``.
 
-    Returns the block count, or None without ``htp_bjacobi_leaf``.
+    A block count set by the user or the file wins; one this function set is recomputed for the
+    new N (it notes its own value in ``-<prefix>htp_bjacobi_blocks_set``). Returns the block
+    count, or None without ``htp_bjacobi_leaf``.
     """
     from petsc4py import PETSc
 
@@ -155,10 +157,12 @@ def set_blocks(prefix: str, n: int, ranks: int = 1) -> int | None:
     leaf = db.getInt("htp_bjacobi_leaf")
     if leaf < 1:
         raise ValueError(f"-{prefix}htp_bjacobi_leaf must be positive, got {leaf}")
-    if db.hasName("pc_bjacobi_blocks"):                 # set by the user: theirs wins
-        return db.getInt("pc_bjacobi_blocks")
+    ours = db.getInt("htp_bjacobi_blocks_set", -1)
+    if db.hasName("pc_bjacobi_blocks") and db.getInt("pc_bjacobi_blocks") != ours:
+        return db.getInt("pc_bjacobi_blocks")             # set by the user: theirs wins
     blocks = max(-(-int(n) // leaf), ranks)
     db.setValue("pc_bjacobi_blocks", blocks)
+    db.setValue("htp_bjacobi_blocks_set", blocks)
     return blocks
 
 
