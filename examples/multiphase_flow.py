@@ -39,13 +39,9 @@ try:
     import petsc_htp  # noqa: F401  (installed)
 except ImportError:                # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
-from petsc_htp.methods import Loaded, split_options_files  # noqa: E402
+from petsc_htp.methods import Loaded, init_petsc  # noqa: E402
 
-sys.argv, OPTION_FILES = split_options_files(sys.argv)
-
-import petsc4py  # noqa: E402
-
-petsc4py.init(sys.argv)
+OPTION_FILES = init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from petsc_htp.flow import Flow  # noqa: E402

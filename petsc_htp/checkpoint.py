@@ -24,29 +24,34 @@ def atomic_save(obj, path) -> Path:
     return Path(path)
 
 
-def save(path, net: HTPNet, provenance: dict, extra: dict | None = None) -> Path:
-    """Write a checkpoint; ``extra`` (optimizer state, ...) is kept for resuming."""
-    obj = {"format": FORMAT, "version": VERSION, "config": net.cfg.to_dict(),
+def save(path, net, provenance: dict, extra: dict | None = None, fmt: str = FORMAT, version: int = VERSION) -> Path:
+    """Write a network's checkpoint; ``extra`` (optimizer state, ...) is kept for resuming.
+
+    ``net`` has a ``cfg`` with ``to_dict()``; ``fmt`` and ``version`` tag the kind of network.
+    """
+    obj = {"format": fmt, "version": version, "config": net.cfg.to_dict(),
            "state_dict": net.state_dict(), "provenance": dict(provenance)}
     if extra:
         obj["extra"] = extra
     return atomic_save(obj, path)
 
 
-def read(path=None) -> dict:
-    """Read and validate a checkpoint file (the shipped one when ``path`` is None)."""
-    path = Path(path) if path else DEFAULT
+def read(path=None, fmt: str = FORMAT, version: int = VERSION, default: Path = DEFAULT,
+         what: str = "petsc_htp checkpoint") -> dict:
+    """Read and validate a checkpoint file of kind ``fmt``, called ``what`` in errors (``default`` when
+    ``path`` is None)."""
+    path = Path(path) if path else default
     if not path.is_file():
-        raise CheckpointError(f"checkpoint {path} does not exist")
+        raise CheckpointError(f"{what} {path} does not exist")
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged file
-        raise CheckpointError(f"checkpoint {path} is corrupt or unreadable: {exc}") from exc
-    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
-        raise CheckpointError(f"{path} is not a petsc_htp checkpoint")
-    if obj.get("version") != VERSION:
-        raise CheckpointError(f"checkpoint {path} has format version {obj.get('version')!r}; "
-                              f"this petsc_htp reads version {VERSION}")
+        raise CheckpointError(f"{what} {path} is corrupt or unreadable: {exc}") from exc
+    if not isinstance(obj, dict) or obj.get("format") != fmt:
+        raise CheckpointError(f"{path} is not a {what}")
+    if obj.get("version") != version:
+        raise CheckpointError(f"{what} {path} has format version {obj.get('version')!r}; "
+                              f"this petsc_htp reads version {version}")
     return obj
 
 

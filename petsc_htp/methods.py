@@ -24,17 +24,24 @@ OPTIONS_DIR = Path(str(files("petsc_htp") / "options"))
 COMMON = "common"
 
 
-def split_options_files(argv) -> tuple:
-    """``argv`` without its ``-options_file F`` pairs, and the files (for :class:`Loaded`, not PETSc's init)."""
-    out, files, i = [], [], 0
+def init_petsc(argv) -> list:
+    """Start petsc4py for a script: ``-options_file F`` pairs leave ``argv`` (in place) for :class:`Loaded`.
+
+    Returns the options files, in command-line order. Call it before importing ``petsc4py.PETSc``.
+    """
+    import petsc4py
+
+    rest, files, i = [], [], 0
     while i < len(argv):
         if argv[i] == "-options_file" and i + 1 < len(argv):
             files.append(argv[i + 1])
             i += 2
         else:
-            out.append(argv[i])
+            rest.append(argv[i])
             i += 1
-    return out, files
+    argv[:] = rest
+    petsc4py.init(argv)
+    return files
 
 
 def method_names() -> list:

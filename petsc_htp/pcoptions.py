@@ -8,11 +8,11 @@ from . import checkpoint
 
 ORDERINGS = ("auto", "morton", "rcm", "natural", "metis")
 VARIANTS = ("paper", "twolevel")
-COARSE = ("const", "eig")
+COARSE = ("const", "eig", "learned")
 FALLBACKS = ("none", "jacobi")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
-PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf")
+PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
@@ -21,8 +21,9 @@ HELP = {
     "ordering": "auto (Morton with coordinates, else RCM for paper and METIS for twolevel), morton, rcm, "
                 "natural or metis (twolevel only)",
     "leaf": "twolevel: rows per leaf (the paper's leaf size is the network's)",
-    "coarse": "twolevel coarse space: const (r=1) or eig (local Neumann eigenvectors)",
-    "coarse_rank": "twolevel: coarse vectors per leaf r",
+    "coarse": "twolevel coarse space: const (r=1), eig (local Neumann eigenvectors) or learned (network)",
+    "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
+    "coarse_rank": "twolevel: coarse vectors per leaf r (eig; learned takes the network's r)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
@@ -42,6 +43,7 @@ class HTPOptions:
     leaf: int = 128
     coarse: str = "eig"
     coarse_rank: int = 4
+    coarse_checkpoint: str = ""
     shift: float = 0.0
     spd_guard: bool = True
     threads: int = 1
@@ -87,6 +89,8 @@ class HTPOptions:
             now, default = getattr(self, f.name), f.default
             if f.name == "checkpoint":
                 now, default = now or checkpoint.DEFAULT, checkpoint.DEFAULT
+            if f.name == "coarse_checkpoint":
+                now, default = now or "shipped", "shipped"
             kind = {str: "string", float: "real", int: "int", bool: "bool"}[type(f.default)]
             out.append(f"  {opt}{f.name} <{kind}> <now {now} : formerly {default}>: {HELP[f.name]} (HTPPC)")
         return out

@@ -19,7 +19,7 @@ from .atomic import atomic_open
 from .flow import Flow
 from .flowplot import plot_runs, write_gif
 from .methods import reason_name, set_blocks
-from .petscmat import attach
+from .petscmat import attach, region_nullspace
 
 
 def create_matrix(A, regions):
@@ -29,17 +29,7 @@ def create_matrix(A, regions):
     mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     mat.setOption(PETSc.Mat.Option.SYMMETRY_ETERNAL, True)
-    if regions.max() == 0:
-        nullspace = PETSc.NullSpace().create(constant=True, comm=mat.getComm())
-    else:
-        vectors = []
-        for region in range(regions.max() + 1):
-            inside = regions == region
-            vec = mat.createVecLeft()
-            vec.setArray(inside / math.sqrt(np.count_nonzero(inside)))
-            vectors.append(vec)
-        nullspace = PETSc.NullSpace().create(vectors=vectors, comm=mat.getComm())
-    mat.setNullSpace(nullspace)
+    mat.setNullSpace(region_nullspace(mat, regions))
     return mat
 
 

@@ -26,6 +26,7 @@ import torch
 from petsc4py import PETSc
 
 from . import twolevel
+from .coarsenet import learned_basis
 from .leaves import Leaves, choose_leaves
 
 
@@ -56,6 +57,7 @@ class Analysis:
 
     leaves: Leaves
     local: twolevel.TwoLevelAnalysis
+    coords: np.ndarray | None
     subdomains: list
     first_leaf: int
     n_leaves_total: int
@@ -73,7 +75,7 @@ def analyse(mat, rows, coords=None, layout="auto", leaf=128, device="cpu") -> An
                   for a, b in zip(leaves.offsets[:-1], leaves.offsets[1:])]
     mpi = mat.getComm().tompi4py()
     first = mpi.exscan(leaves.n_leaves) or 0
-    return Analysis(leaves, twolevel.analyse(block, leaves, device), subdomains, first,
+    return Analysis(leaves, twolevel.analyse(block, leaves, device), coords, subdomains, first,
                     mpi.allreduce(leaves.n_leaves), 1e3 * (time.perf_counter() - t0))
 
 
@@ -86,15 +88,24 @@ def _with_exact_constants(P, mask):
 
 
 class Composed:
-    """The numeric step: W, W^T A W and its redundant Cholesky, the ASM leaf solves, work vectors."""
+    """The numeric step: W, W^T A W and its redundant Cholesky, the ASM leaf solves, work vectors.
 
-    def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_"):
+    ``coarse`` is const, eig (``rank`` vectors) or learned (the basis of ``net``, a
+    :class:`~petsc_htp.coarsenet.CoarseNet`, from the matrix, the analysis' coordinates and ``density``).
+    """
+
+    def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_",
+                 net=None, density=None):
         t0 = time.perf_counter()
         self.analysis, self.coarse = analysis, coarse
         self.A = mat
         block = local_neumann_block(mat, rows)
         lv, local = analysis.leaves, analysis.local
-        P = twolevel.coarse_space(local, block, coarse, rank)
+        if coarse == "learned":
+            basis = learned_basis(net, local, block, analysis.coords, density)
+            P = twolevel.coarse_space(local, block, "given", basis=basis)
+        else:
+            P = twolevel.coarse_space(local, block, coarse, rank)
         self.null = _has_constant_null(mat)
         if self.null:
             P = _with_exact_constants(P, local.mask)

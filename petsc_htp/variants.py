@@ -9,22 +9,19 @@ options prefix, with
   (``check(probes)``, ``describe()``, ``nbytes``); ``previous`` is the last setup of the same
   analysis, whose buffers it may reuse;
 - ``apply(setup, x, y)``: y = M x on PETSc Vecs;
-- ``parallel``: whether it takes a matrix distributed over several ranks;
 - ``model``: a line naming the model, or None.
 
 A new variant is one class here and its name in :data:`VARIANTS`.
 """
 from __future__ import annotations
 
-from . import twolevelpc
+from . import coarsenet, twolevelpc
 from .checkpoint import DEFAULT
 from .inference import HTP, resolve_device
 
 
 class Paper:
     """The paper's HTP: the network emits the H-matrix factors of M (float32 apply); one rank."""
-
-    parallel = False
 
     def __init__(self, opts, prefix=""):
         self.opts = opts
@@ -59,11 +56,14 @@ class TwoLevel:
     PETSc parts (:mod:`petsc_htp.twolevelpc`), on any number of ranks."""
 
     model = None
-    parallel = True
-
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
         self.device = resolve_device("cpu" if opts.device == "auto" else opts.device)
+        self.net = None
+        if opts.coarse == "learned":
+            self.net, prov = coarsenet.load(opts.coarse_checkpoint or None)
+            self.model = (f"coarse network {self.net.n_parameters()} parameters, r={self.net.cfg.rank}; "
+                          f"checkpoint {opts.coarse_checkpoint or 'shipped ' + str(coarsenet.DEFAULT)}")
 
     def analyse(self, mat, A, coords):
         """Leaves of each rank's rows (Morton with coordinates, else METIS) and their index sets."""
@@ -74,7 +74,7 @@ class TwoLevel:
         if previous is not None:
             previous.destroy()
         rank = 1 if self.opts.coarse == "const" else self.opts.coarse_rank
-        return twolevelpc.Composed(analysis, mat, A, self.opts.coarse, rank, self.prefix + "htp_")
+        return twolevelpc.Composed(analysis, mat, A, self.opts.coarse, rank, self.prefix + "htp_", self.net, density)
 
     @staticmethod
     def apply(setup, x, y):

@@ -15,7 +15,8 @@ from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E40
 from petsc_htp.bench.readme import END, START  # noqa: E402
 from petsc_htp.bench.studies import STUDIES  # noqa: E402
 from petsc_htp.bench.studies.base import Size, Study  # noqa: E402
-from petsc_htp.bench.studies.stability import STRESS, natural_order  # noqa: E402
+from petsc_htp.bench.studies.simulation import is_htp, ratios  # noqa: E402
+from petsc_htp.bench.studies.stability import STRESS, boundary, natural_order, over_budget, sealed  # noqa: E402
 from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 from petsc_htp.scenes import make_frame  # noqa: E402
 
@@ -131,7 +132,8 @@ def test_stability_covers_every_case(quick):
     rows = rows_of(quick, "stability")
     assert {(r["case"], r["method"]) for r in rows} == {(c, m) for c, _ in STRESS for m in DEFAULT_METHODS}
     jac = {r["case"]: r for r in rows if r["method"] == "cg_jacobi"}
-    assert jac["large N"]["n"] == 2048 and jac["odd N"]["n"] == 300
+    assert jac["large N"]["n"] == 2048 and jac["odd N"]["n"] == 300 and jac["huge N"]["n"] == 4096
+    assert jac["rtol 1e-14"]["rtol"] == 1e-14 and jac["simulation"]["n"] < 256
     assert jac["rtol 1e-10"]["rtol"] == 1e-10 and jac["rtol 1e-10"]["relres_proj"] <= 1e-9
     assert jac["natural order"]["ok"] and jac["reference"]["ok"]
     assert jac["inconsistent rhs"]["relres"] > 0.05      # the constant part of b can never be matched
@@ -197,7 +199,8 @@ def test_failing_methods_become_failure_rows(env, tmp_path):
     assert rows["cg_jacobi"][0]["ok"]
     stab = by_method(rows_of(out, "stability"))
     assert len(stab["broken_pc"]) == len(STRESS) and not any(r["ok"] for r in stab["broken_pc"])
-    assert all(r["ok"] for r in stab["cg_jacobi"] if r["case"] != "inconsistent rhs")
+    hard = {"inconsistent rhs", "contrast 1e8"}      # Jacobi's boundary: indefinite in floating point
+    assert all(r["ok"] or r["failure"] == "BUDGET" for r in stab["cg_jacobi"] if r["case"] not in hard)
     report = (out / "report.md").read_text()
     assert "| broken_pc | ✗ exception |" in report and "| two_its | ✗ max it |" in report
     assert "Failures:" in report
@@ -280,6 +283,11 @@ def test_options_loader_follows_includes_and_sets_bjacobi_blocks(tmp_path, monke
     method = resolve_method("cg_bjacobi")
     loaded = load(method)
     try:
+        assert set_blocks(method.prefix, 1000) == 8
+        assert set_blocks(method.prefix, 300) == 3         # our own count follows N
+        PETSc.Options(method.prefix).setValue("pc_bjacobi_blocks", 5)
+        assert set_blocks(method.prefix, 1000) == 5         # the user's count wins
+        PETSc.Options(method.prefix).delValue("pc_bjacobi_blocks")
         assert set_blocks(method.prefix, 1000) == 8
         db = PETSc.Options(method.prefix)
         assert db.getInt("pc_bjacobi_blocks") == 8 and db.getString("sub_pc_type") == "cholesky"
@@ -374,9 +382,11 @@ def test_fastpath_study_runs_on_this_machine(env, tmp_path):
     assert main(["--quick", "--out", str(out), "--studies", "fastpath", "--scales", "256", "--frames", "1",
                  *env["common"]]) == 0
     rows = rows_of(out, "fastpath")
-    assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp"]
+    assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig"]
     assert all(r["n"] == 256 and r["us_per_iter"] > 0 for r in rows)
     assert all(r["ok"] for r in rows if r["method"] != "htp")
+    its = {r["method"]: r["iterations"] for r in rows}
+    assert its["twolevel_eig"] < its["bjacobi"] < its["jacobi"]
     report = (out / "report.md").read_text()
     assert "## 8. Fast path" in report and (out / "fastpath.png").stat().st_size > 2000
     if not torch.cuda.is_available():
@@ -389,3 +399,80 @@ def test_model_card_lists_training_stages_oldest_first():
     prov = {"steps": 10, "scales": [2048], "init": {"steps": 500, "scales": [1024], "init": {"steps": 2608}}}
     assert [st["steps"] for st in training_stages(prov)] == [2608, 500, 10]
     assert training_stages({"steps": 3}) == [{"steps": 3}]
+
+
+# ------------------------------------------------------------------ simulation and stability limits
+
+def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
+    out = tmp_path / "sim"
+    argv = ["--quick", "--studies", "simulation", "--methods", "cg_jacobi", "cg_htp", "cg_twolevel_const",
+            "--out", str(out), *env["common"]]
+    assert main(argv) == 0
+    rows = rows_of(out, "simulation")
+    sim = [r for r in rows if r["kind"] == "simulation"]
+    runs = {(r["method"], r["reuse"]) for r in sim}
+    assert runs == {("cg_jacobi", 0), ("cg_htp", 0), ("cg_htp", 2), ("cg_twolevel_const", 0),
+                    ("cg_twolevel_const", 2)}
+    for method, reuse in runs:
+        got = [r for r in sim if (r["method"], r["reuse"]) == (method, reuse)]
+        assert [r["frame"] for r in got] == [0, 1, 2, 3] and all(r["ok"] for r in got), got
+        assert [r["rebuilt"] for r in got] == ([True] * 4 if reuse == 0 else [True, False, True, False])
+        if method != "cg_jacobi":        # the python PC's own count of numeric setups agrees
+            assert [r["numeric_setups"] for r in got] == [int(r["rebuilt"]) for r in got]
+    gen = [r for r in rows if r["kind"] == "generator"]
+    assert {r["method"] for r in gen} == {"cg_jacobi", "cg_htp", "cg_twolevel_const"}
+    assert all(r["n"] == 32 * 32 and r["ok"] for r in gen)
+    report = (out / "report.md").read_text()
+    assert "## 9. Simulation" in report and "](simulation.png)" in report
+    assert (out / "simulation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from petsc_htp.bench.report import load
+    for side, method, htp, s, g, r in ratios(load(out)):
+        sim_its = np.mean([x["iterations"] for x in sim if (x["method"], x["reuse"]) == (method, 0)])
+        gen_its = np.mean([x["iterations"] for x in gen if x["method"] == method])
+        assert r == pytest.approx(sim_its / gen_its) and htp == (method != "cg_jacobi")
+        line = next(li for li in report.splitlines()
+                    if li.startswith(f"| {method}" + (" (HTP)" if htp else " |")) and f"| {side}² |" in li)
+        assert f"{r:.2f}×" in line and (("✓" in line or "✗" in line) if htp else True)
+
+
+def test_htp_variants_are_found_from_the_options():
+    htp = {"cg_htp", "cg_twolevel_const", "cg_twolevel_eig", "gmres_htp", "gmres_twolevel", "bjacobi_htp"}
+    for name in htp | {"cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg"}:
+        assert is_htp(resolve_method(name)) == (name in htp), name
+    assert not is_htp(resolve_method("pyamg"))
+
+
+def test_new_stress_cases_exist():
+    names = [c for c, _ in STRESS]
+    for case in ("contrast 1e6", "contrast 1e8", "rtol 1e-14", "regions", "huge N", "simulation"):
+        assert case in names
+    sizes = {s.name: s for s in STUDIES["stability"].sizes}
+    assert sizes["huge_n"].full == 262144 and sizes["huge_n"].quick < 262144
+    assert sizes["frame_budget_ms"].full == pytest.approx(1e3 / 24, abs=0.05)
+
+
+def test_sealed_regions_carry_one_null_vector_each():
+    from petsc4py import PETSc
+
+    from petsc_htp.petscmat import frame_mat
+
+    frame = sealed(make_frame(1024, seed=1_000_002, distribution="closed_only"))
+    regions = frame.params["regions"]
+    assert regions >= 2
+    mat = frame_mat(frame, PETSc.COMM_SELF)
+    vecs = mat.getNullSpace().getVecs()
+    assert len(vecs) == regions
+    for v in vecs:
+        null = v.getArray(readonly=True)
+        assert np.abs(frame.A @ null).max() < 1e-9 and abs(null @ frame.b) < 1e-9
+    assert np.abs(frame.A @ np.ones(frame.n)).max() < 1e-9
+    mat.destroy()
+
+
+def test_budget_marks_slow_frames_failed():
+    rows = [{"ok": True, "failure": None, "total_ms": 50.0, "case": "a", "method": "slow"},
+            {"ok": True, "failure": None, "total_ms": 10.0, "case": "a", "method": "fast"},
+            {"ok": False, "failure": "DIVERGED_ITS", "total_ms": 90.0, "case": "b", "method": "fast"}]
+    over_budget(rows, 41.7)
+    assert [(r["ok"], r["failure"]) for r in rows] == [(False, "BUDGET"), (True, None), (False, "DIVERGED_ITS")]
+    assert boundary(rows, ["slow", "fast"], ["a", "b"]) == {"slow": "a", "fast": "b"}

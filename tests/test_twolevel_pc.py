@@ -64,9 +64,9 @@ def permuted(frame, seed):
     return frame.A[p][:, p].tocsr(), frame.b[p]
 
 
-@pytest.mark.parametrize("coarse", ["eig", "const"])
+@pytest.mark.parametrize("coarse", ["eig", "const", "learned"])
 def test_bare_permuted_matrix(frames, coarse):
-    bars = {"eig": 35, "const": 60}
+    bars = {"eig": 35, "const": 60, "learned": 35}
     for k, frame in enumerate(frames):
         A, b = permuted(frame, k)
         mat = petsc_mat(A)

@@ -8,7 +8,7 @@ from .. import methods
 
 PYAMG = "pyamg"
 DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", "cg_twolevel_const",
-                   "cg_twolevel_eig", PYAMG)
+                   "cg_twolevel_eig", "cg_twolevel_learned", PYAMG)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,267 @@
+"""Simulation: every method over a run of the two-phase flow, one persistent KSP, previous pressure as guess.
+
+The run is recorded once per grid side (the pressure systems of :class:`petsc_htp.flow.Flow`,
+projected with ``cg_gamg``) and replayed by every method through
+:class:`petsc_htp.simulation.PressureSolver` and :class:`~petsc_htp.simulation.ReusePolicy`, so
+that all of them solve the same frames. HTP variants run with and without PC reuse.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...flow import Flow
+from ...methods import Loaded
+from ...scenes import Frame
+from ..aggregate import FPS_BUDGETS, group, ordered
+from ..cases import Problem, held_out_frames
+from ..markdown import image, its, md_table, ms, n_label, ratio
+from ..plotting import colors, figure, fps_lines, save
+from .base import Size, Study, solve_all, tag
+
+CHART = "simulation.png"
+REFERENCE = "cg_gamg"       # projects the recorded run
+RATIO_BAR = 1.3             # simulation / generator iterations an HTP variant should stay within
+GROWTH = 1.5                # ReusePolicy's growth rule (the example's default)
+DENSITY_RATIO = 1000.0      # the example's default
+
+
+def is_htp(method) -> bool:
+    """True when the method's options (comments aside) use ``petsc_htp.HTPPC``."""
+    if not method.is_petsc:
+        return False
+    lines = (li.split("#")[0] for li in method.path.read_text().splitlines())
+    return any("petsc_htp.HTPPC" in li for li in lines)
+
+
+def recorded_run(side, frames, seed=0):
+    """The pressure systems of ``frames`` frames of a ``side`` x ``side`` run, and the fluid regions.
+
+    Returns
+    -------
+    systems : list of (A, b, coords, coefficient)
+        ``coefficient`` is ``1/rho``, the operator's material coefficient (HTP's density feature).
+    regions : numpy.ndarray of int
+    """
+    from petsc4py import PETSc
+
+    from ...simulation import PressureSolver
+    from ..runner import PRINT_ONLY
+
+    sim = Flow(side, side, density_ratio=DENSITY_RATIO, seed=seed)
+    systems, solver = [], None
+    with Loaded(REFERENCE, prefix="sim_reference_"):
+        for name in PRINT_ONLY:
+            PETSc.Options("sim_reference_").delValue(name)
+        for _ in range(frames):
+            sim.advance()
+            A, b, coords, rho = sim.system()
+            solver = solver or PressureSolver(A, sim.regions, "sim_reference_")
+            solver.solve(A, b, coords, 1.0 / rho, rebuild=True)
+            sim.project(solver.pressure())
+            systems.append((A, b, coords, 1.0 / rho))
+    solver.destroy()
+    return systems, sim.regions
+
+
+def flow_frames(n, count, seed=0) -> list:
+    """``count`` frames of a run at about ``n`` cells as generator-style :class:`Frame` (rho = 1/rho)."""
+    side = max(8, round(math.sqrt(n)))
+    systems, _ = recorded_run(side, count, seed)
+    sim = Flow(side, side, density_ratio=DENSITY_RATIO, seed=seed)
+    return [Frame(A=A, b=b, rho=coef, coords=coords, grid_shape=(side, side), perm=sim.iy * side + sim.ix,
+                  params={"n": A.shape[0], "seed": k, "source": "flow"})
+            for k, (A, b, coords, coef) in enumerate(systems)]
+
+
+def _frame_row(res, rtol):
+    """A replayed frame's row fields from :meth:`PressureSolver.solve`'s result."""
+    from ...methods import reason_name
+
+    code = res.pop("code")
+    failure = (reason_name(code) if code < 0 else
+               "RESIDUAL" if not res["relres"] <= 10 * rtol else None)
+    return {"iterations": res.pop("its"), "reason": reason_name(code), "total_ms": res["setup_ms"] + res["solve_ms"],
+            "ok": failure is None, "failure": failure, **res}
+
+
+def replay(method, systems, regions, reuse, extra) -> list:
+    """One method over the recorded run (reuse: rebuild every ``reuse`` frames, 0 = every frame)."""
+    from ...simulation import PressureSolver, ReusePolicy
+    from ..runner import load
+
+    rows, loaded = [], load(method, extra)
+    solver = PressureSolver(systems[0][0], regions, method.prefix)
+    rtol, policy = solver.ksp.getTolerances()[0], ReusePolicy(reuse, GROWTH)
+    try:
+        for frame, (A, b, coords, coef) in enumerate(systems):
+            rebuild = policy.rebuild()
+            try:
+                row = _frame_row(solver.solve(A, b, coords, coef, rebuild), rtol)
+            except Exception as exc:  # a failing frame is a result
+                row = {"ok": False, "failure": "EXCEPTION", "reason": "EXCEPTION", "error": str(exc)[:200],
+                       "iterations": 0, "total_ms": None}
+            if not row["ok"]:
+                solver.x.set(0.0)       # no garbage initial guess for the next frame
+            policy.record(rebuild, row["iterations"])
+            rows.append({"method": method.name, "htp": is_htp(method), "reuse": reuse, "n": A.shape[0],
+                         "frame": frame, "rebuilt": rebuild, "kind": "simulation", **row})
+    finally:
+        solver.destroy()
+        loaded.__exit__(None, None, None)
+    return rows
+
+
+def variants(method, every) -> list:
+    """Reuse settings to run: ``[0, every]`` for HTP variants, ``[0]`` otherwise."""
+    return [0, every] if is_htp(method) and every else [0]
+
+
+def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
+    """Every method (and reuse setting) over the run at every side, then on ``gen_frames`` generator frames."""
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()              # for the rows' pc_setups (PCSetUp events, inner PCs included)
+    rows = []
+    petsc = [m for m in methods if m.is_petsc]
+    for side in sides:
+        systems, regions = recorded_run(side, frames)
+        for m in petsc:
+            for reuse in variants(m, every):
+                replay(m, systems[:1], regions, reuse, extra)      # warm-up, discarded
+                for row in replay(m, systems, regions, reuse, extra):
+                    rows.append(tag(row, side=side))
+                    tick()
+        gen = [Problem(f, case="generator") for f in held_out_frames(side * side, gen_frames)]
+        rows += [tag(r, kind="generator", reuse=0, side=side, htp=is_htp(m))
+                 for m in petsc for r in solve_all([m], gen, extra, tick, "simulation", warmup=False)]
+    return rows
+
+
+# ------------------------------------------------------------------ report
+
+def label(method, reuse) -> str:
+    """``cg_htp`` or ``cg_htp reuse 5``."""
+    return f"{method} reuse {reuse}" if reuse else method
+
+
+def stats(rows) -> dict:
+    """Per-run numbers: ms per frame (mean, p95), mean iterations, setups, failures, frames over 41.7 ms."""
+    t = np.array([r["total_ms"] for r in rows if r.get("total_ms") is not None])
+    budget = max(b for _, b in FPS_BUDGETS)
+    return {"frames": len(rows), "mean": float(t.mean()) if t.size else math.nan,
+            "p95": float(np.percentile(t, 95)) if t.size else math.nan,
+            "its": float(np.mean([r["iterations"] for r in rows if r["ok"]] or [math.nan])),
+            "setups": sum(bool(r["rebuilt"]) for r in rows),
+            "failed": sum(not r["ok"] for r in rows), "over": int(np.sum(t > budget))}
+
+
+def _runs(res):
+    """{(side, method, reuse): simulation rows} and {(side, method): generator rows}, in run order."""
+    rows = res.rows["simulation"]
+    sim = group([r for r in rows if r["kind"] == "simulation"], "side", "method", "reuse")
+    gen = group([r for r in rows if r["kind"] == "generator"], "side", "method")
+    return sim, gen
+
+
+def ratios(res) -> list:
+    """[(side, method, HTP variant?, sim its, generator its, ratio)] of every method measured both ways.
+
+    The simulation side is the run without reuse.
+    """
+    sim, gen = _runs(res)
+    out = []
+    for (side, m), g in gen.items():
+        s = stats(sim.get((side, m, 0), []))["its"]
+        gi = float(np.mean([r["iterations"] for r in g if r["ok"]] or [math.nan]))
+        out.append((side, m, bool(g[0].get("htp")), s, gi, s / gi))
+    return out
+
+
+def tables(res) -> str:
+    """The per-run table and the iteration-ratio table."""
+    sim, _ = _runs(res)
+    head = ["Method", "N", "ms/frame mean", "p95", "mean its", "setups", "failures", "> 41.7 ms"]
+    body = [[label(m, reuse), n_label(rows[0]["n"]), ms(s["mean"]), ms(s["p95"]), its(s["its"]),
+             f"{s['setups']}/{s['frames']}", str(s["failed"]), str(s["over"])]
+            for (side, m, reuse), rows in sim.items() if (s := stats(rows))]
+    rat = [[m + (" (HTP)" if htp else ""), f"{side}²", its(s), its(g), ratio(r),
+            ("✓" if r <= RATIO_BAR else "✗") if htp else ""] for side, m, htp, s, g, r in ratios(res)]
+    return "\n\n".join([md_table(head, body),
+                        "Mean iterations on simulation frames (no reuse) over those on held-out generator frames "
+                        f"at N = side² (fresh KSP, x0 = 0); the bar for HTP variants is a ratio within {RATIO_BAR}:",
+                        md_table(["Method", "side", "sim its", "generator its", "ratio", f"≤ {RATIO_BAR}"], rat)])
+
+
+def chart(res, out) -> str:
+    """ms per frame over the run, one panel per grid side, with the 60 and 24 fps lines."""
+    sim, _ = _runs(res)
+    sides = ordered(k[0] for k in sim)
+    names = ordered(k[1] for k in sim)
+    color = colors(names)
+    fig, axes = figure(6.5 * len(sides), 4.4, cols=len(sides))
+    for ax, side in zip(axes[0], sides):
+        for (s, m, reuse), rows in sim.items():
+            if s == side:
+                ax.plot([r["frame"] for r in rows], [r.get("total_ms") or math.nan for r in rows],
+                        color=color[m], ls="--" if reuse else "-", lw=1, label=label(m, reuse))
+        ax.set_yscale("log")
+        ax.set_xlabel("frame")
+        ax.set_ylabel("setup + solve ms")
+        ax.set_title(f"{side} x {side} simulation (dashed: PC reuse)")
+        fps_lines(ax)
+    axes[0, -1].legend(fontsize=7, ncol=2)
+    return save(fig, out, CHART)
+
+
+class Simulation(Study):
+    """Methods over a run of the two-phase flow simulation."""
+
+    name = "simulation"
+    help = ("methods over a run of the two-phase flow (persistent KSP, previous pressure as guess; HTP variants "
+            "with and without PC reuse): ms per frame, iterations, setups, failures, sim/generator iterations")
+    sizes = (Size("sim_n", [64, 128], [32], "grid sides of the simulation study"),
+             Size("sim_frames", 50, 4, "frames per simulation run"),
+             Size("sim_reuse", 5, 2, "HTP reuse runs rebuild every k frames"),
+             Size("sim_gen_frames", 5, 1, "generator frames per N for the iteration ratio"))
+    readme_links = ((CHART, "simulation frames"),)
+
+    def meta(self, settings):
+        return {"sim": {"sides": settings["sim_n"], "frames": settings["sim_frames"],
+                        "reuse": settings["sim_reuse"], "gen_frames": settings["sim_gen_frames"]}}
+
+    def expected_solves(self, ctx):
+        s, petsc = ctx.settings, [m for m in ctx.methods if m.is_petsc]
+        runs = sum(len(variants(m, s["sim_reuse"])) for m in petsc)
+        return len(s["sim_n"]) * (runs * s["sim_frames"] + len(petsc) * s["sim_gen_frames"])
+
+    def measure(self, ctx, tick):
+        s = ctx.settings
+        return run(ctx.methods, s["sim_n"], s["sim_frames"], s["sim_reuse"], s["sim_gen_frames"], ctx.extra, tick)
+
+    def section(self, res):
+        meta = res.meta.get("sim", {})
+        return "\n\n".join([
+            "## 9. Simulation",
+            f"{meta.get('frames', '?')} frames of `examples/multiphase_flow.py`'s scene (density ratio "
+            f"{DENSITY_RATIO:g}) per grid side, recorded once (projected with {REFERENCE}) and replayed by every "
+            "method with one persistent KSP and the previous pressure as initial guess; HTP variants also with "
+            f"PC reuse (rebuild every {meta.get('reuse', '?')} frames or when iterations grow {GROWTH}×). "
+            "ms per frame = setup + solve over every frame (failed ones included); setups: frames whose PC "
+            "was rebuilt (the others run with `PCSetReusePreconditioner`); one warm-up frame per run is excluded.",
+            tables(res),
+            image(CHART, "ms per frame over the simulation"),
+        ])
+
+    def charts(self, res, out):
+        return [chart(res, out)]
+
+    def readme(self, res, prefix):
+        return "### Simulation\n\n" + tables(res) + "\n\n" + image(CHART, "Simulation", prefix)
+
+    def summary(self, res):
+        return tables(res)
+
+
+STUDY = Simulation()
