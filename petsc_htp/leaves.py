@@ -83,6 +83,9 @@ def _positive_int(value, name):
 def contiguous_leaves(n, leaf=128, perm=None, kind="natural", build_ms=0.0) -> Leaves:
     """Cut an ordering into ceil(n / leaf) contiguous leaves of near-equal size.
 
+    The first ``n % K`` leaves have one row more, as PETSc's ``PCBJACOBI`` splits its blocks, so
+    contiguous leaves of the given order are exactly ``-pc_bjacobi_local_blocks K``'s blocks.
+
     Parameters
     ----------
     n : int
@@ -97,7 +100,8 @@ def contiguous_leaves(n, leaf=128, perm=None, kind="natural", build_ms=0.0) -> L
     n, leaf = _positive_int(n, "n"), _positive_int(leaf, "leaf")
     perm = np.arange(n, dtype=np.int64) if perm is None else perm
     k = math.ceil(n / leaf)
-    return Leaves(perm, (np.arange(k + 1, dtype=np.int64) * n) // k, kind, build_ms)
+    sizes = n // k + (np.arange(k) < n % k)
+    return Leaves(perm, np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64), kind, build_ms)
 
 
 def _metis_graph(A):

@@ -4,7 +4,9 @@
 
 - leaves: each rank's rows cut into leaves of about ``leaf`` rows (Morton with coordinates,
   METIS of the rank's block otherwise; :func:`petsc_htp.leaves.choose_leaves`);
-- B: ``PCASM`` with one non-overlapping subdomain per leaf and Cholesky on each (exact leaf solves);
+- B: exact Cholesky solves on the leaves: ``PCBJACOBI`` when the leaves are contiguous blocks of
+  the rank's rows (the given order is the leaves' order), else ``PCASM`` with one non-overlapping
+  subdomain per leaf;
 - W: a parallel AIJ matrix with r columns per leaf, the coarse space of :mod:`petsc_htp.twolevel`
   computed on the rank's local Neumann block (couplings to other ranks folded into the diagonal,
   so a leaf sees the same local matrix whatever the number of ranks): the coarse space is global;
@@ -58,6 +60,7 @@ class Analysis:
     leaves: Leaves
     local: twolevel.TwoLevelAnalysis
     coords: np.ndarray | None
+    contiguous: bool
     subdomains: list
     first_leaf: int
     n_leaves_total: int
@@ -75,7 +78,9 @@ def analyse(mat, rows, coords=None, layout="auto", leaf=128, device="cpu") -> An
                   for a, b in zip(leaves.offsets[:-1], leaves.offsets[1:])]
     mpi = mat.getComm().tompi4py()
     first = mpi.exscan(leaves.n_leaves) or 0
-    return Analysis(leaves, twolevel.analyse(block, leaves, device), coords, subdomains, first,
+    in_order = np.array_equal(leaves.perm, np.arange(leaves.n))      # leaves are blocks of the rows
+    contiguous = mpi.allreduce(int(not in_order)) == 0               # (on every rank: one PC type)
+    return Analysis(leaves, twolevel.analyse(block, leaves, device), coords, contiguous, subdomains, first,
                     mpi.allreduce(leaves.n_leaves), 1e3 * (time.perf_counter() - t0))
 
 
@@ -130,10 +135,14 @@ class Composed:
         self.B = PETSc.PC().create(mat.getComm())
         self.B.setOptionsPrefix(prefix + "leaf_")
         self.B.setOperators(mat, mat)
-        self.B.setType("asm")
-        self.B.setASMLocalSubdomains(len(analysis.subdomains), analysis.subdomains)
-        self.B.setASMOverlap(0)
-        self.B.setASMType(PETSc.PC.ASMType.BASIC)
+        if analysis.contiguous:                           # PCBJACOBI's own equal split is the leaves
+            self.B.setType("bjacobi")
+            PETSc.Options(prefix + "leaf_").setValue("pc_bjacobi_local_blocks", lv.n_leaves)
+        else:
+            self.B.setType("asm")
+            self.B.setASMLocalSubdomains(len(analysis.subdomains), analysis.subdomains)
+            self.B.setASMOverlap(0)
+            self.B.setASMType(PETSc.PC.ASMType.BASIC)
         self.B.setFromOptions()
         self.B.setUp()
         self.B.setUpOnBlocks()
@@ -208,7 +217,8 @@ class Composed:
     def nbytes(self) -> int:
         """Bytes held on this rank: W, W^T A W, and the leaf Cholesky factors (8 bytes a value)."""
         held = self.W.getInfo()["nz_used"] + self.E.getInfo()["nz_used"]
-        held += sum(sub.getPC().getFactorMatrix().getInfo()["nz_used"] for sub in self.B.getASMSubKSP())
+        subs = self.B.getBJacobiSubKSP() if self.analysis.contiguous else self.B.getASMSubKSP()
+        held += sum(sub.getPC().getFactorMatrix().getInfo()["nz_used"] for sub in subs)
         return int(8 * held)
 
     def describe(self) -> list:
@@ -216,7 +226,8 @@ class Composed:
         a, lv, t = self.analysis, self.analysis.leaves, self.times
         n = self.A.getSize()[0]
         return [f"leaves: {lv.kind}, {a.n_leaves_total} in all ({lv.n_leaves} on this rank), sizes "
-                f"{lv.sizes.min()}-{lv.max_size}; exact Cholesky on each (PCASM, no overlap)",
+                f"{lv.sizes.min()}-{lv.max_size}; exact Cholesky on each "
+                f"({'PCBJACOBI' if a.contiguous else 'PCASM, no overlap'})",
                 f"coarse: {self.coarse}, r={self.rank}, global size {self.E.getSize()[0]}"
                 + ("; A's constant null space left out of W" if self.null else ""),
                 f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
