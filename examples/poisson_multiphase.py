@@ -93,13 +93,14 @@ def compare(A, b, n, cli):
             res = {"ksp": "-", "pc": "-", "its": -1, "reason": f"ERROR {exc}", "converged": False,
                    "setup_ms": float("nan"), "solve_ms": float("nan"), "relres": float("nan")}
         rows.append((name, res))
-    head = f"{'method':<12} {'ksp':<6} {'pc':<16} {'its':>6} {'reason':<24} {'setup ms':>10} {'solve ms':>10} {'rel. res.':>10}"
+    w = max(len(stem) for stem, _ in rows)
+    head = f"{'method':<{w}} {'ksp':<6} {'pc':<16} {'its':>6} {'reason':<24} {'setup ms':>10} {'solve ms':>10} {'rel. res.':>10}"
     PETSc.Sys.Print("")
     PETSc.Sys.Print(f"comparison on N={n} (rtol and norm from options/common.opts):")
     PETSc.Sys.Print(head)
     PETSc.Sys.Print("-" * len(head))
     for stem, r in rows:
-        PETSc.Sys.Print(f"{stem:<12} {r['ksp']:<6} {r['pc']:<16} {r['its']:>6} {r['reason']:<24} "
+        PETSc.Sys.Print(f"{stem:<{w}} {r['ksp']:<6} {r['pc']:<16} {r['its']:>6} {r['reason']:<24} "
                         f"{r['setup_ms']:>10.1f} {r['solve_ms']:>10.1f} {r['relres']:>10.2e}")
     return rows
 
