@@ -29,8 +29,7 @@ from .dataset import load_dataset
 from .leaves import choose_leaves
 from .loss import cosine_loss, n_probes, smoothed_probes
 from .pcg import pcg
-from .twolevel import (TwoLevelAnalysis, _blocks, _coarse_null_space, _csr, _galerkin, _leaf_inverses,
-                       _null_components, _values, analyse, factor)
+from .twolevel import TwoLevelAnalysis, _coarse_null_space, _galerkin, analyse, factor, leaf_stage
 
 PROBE_STEPS = 30            # probe smoothing steps (see context_loss)
 
@@ -51,12 +50,7 @@ class Context:
 def make_context(cfg: CoarseConfig, A, leaves, coords=None, density=None, device="cpu") -> Context:
     """Precompute everything but the coarse basis for one operator on one leaf layout."""
     an = analyse(A, leaves, device)
-    data = _values(an, A)
-    A_t = _csr(an, data)
-    blocks = _blocks(an, data)
-    dmax = (blocks.diagonal(dim1=1, dim2=2) * an.mask).abs().max()
-    null = _null_components(an, A_t, dmax)
-    leaf_inv, _ = _leaf_inverses(an, blocks, null)
+    data, A_t, blocks, _, null, leaf_inv, _ = leaf_stage(an, A)
     return Context(an, data, A_t, blocks, leaf_inv, null, coarse_input(cfg, an, A, coords, density))
 
 

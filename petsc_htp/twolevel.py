@@ -530,6 +530,17 @@ class TwoLevel:
         return lines + ([f"leaf blocks: {self.leaf_note}"] if self.leaf_note else [])
 
 
+def leaf_stage(analysis: TwoLevelAnalysis, A) -> tuple:
+    """Values, padded CSR, leaf blocks, largest |diagonal|, null components, leaf inverses and their note."""
+    data = _values(analysis, A)
+    A_csr = _csr(analysis, data)
+    blocks = _blocks(analysis, data)
+    dmax = (blocks.diagonal(dim1=1, dim2=2) * analysis.mask).abs().max()
+    null = _null_components(analysis, A_csr, dmax)
+    leaf_inv, leaf_note = _leaf_inverses(analysis, blocks, null)
+    return data, A_csr, blocks, dmax, null, leaf_inv, leaf_note
+
+
 def coarse_space(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> torch.Tensor:
     """The coarse basis P alone, (K, Lmax, r) in the padded leaf layout (no leaf inverses, no coarse operator).
 
@@ -566,12 +577,7 @@ def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> T
     device = analysis.device
     times = {}
     t0 = time.perf_counter()
-    data = _values(analysis, A)
-    A_csr = _csr(analysis, data)
-    blocks = _blocks(analysis, data)
-    dmax = (blocks.diagonal(dim1=1, dim2=2) * analysis.mask).abs().max()
-    null = _null_components(analysis, A_csr, dmax)
-    leaf_inv, leaf_note = _leaf_inverses(analysis, blocks, null)
+    data, A_csr, blocks, dmax, null, leaf_inv, leaf_note = leaf_stage(analysis, A)
     times["leaf"] = _ms(t0, device)
     t0 = time.perf_counter()
     P = _coarse_basis(analysis, blocks, data, coarse, rank, basis)

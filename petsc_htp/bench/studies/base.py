@@ -1,6 +1,7 @@
 """What every study shares: the :class:`Study` protocol, its size settings and measurement context."""
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -109,7 +110,7 @@ class Context:
         return base_config(self.checkpoint)
 
 
-class Study:
+class Study(ABC):
     """One benchmark study: what it measures, the solves it expects, its report section and charts.
 
     A subclass sets the attributes and overrides the methods it needs; its
@@ -151,12 +152,15 @@ class Study:
         return 0
 
     def measure(self, ctx, tick) -> list:
-        """Run the study; return its result rows (dicts), calling ``tick()`` after every solve."""
-        raise NotImplementedError(f"{self.name} reads the rows of {self.data}")
+        """Run the study; return its result rows (dicts), calling ``tick()`` after every solve.
 
+        A study that reads another study's rows (``data``) measures nothing itself.
+        """
+        return []
+
+    @abstractmethod
     def section(self, res) -> str:
         """Its section of report.md from the results (:class:`~petsc_htp.bench.report.Results`)."""
-        raise NotImplementedError
 
     def charts(self, res, out) -> list:
         """Draw its charts into folder ``out``; return the file names."""
