@@ -9,14 +9,18 @@ def min_rayleigh(apply, n: int, probes: int = 8, seed: int = 0) -> float:
     for _ in range(probes):
         r = rng.standard_normal(n)
         vals.append(float(r @ apply(r) / (r @ r)))
-    return min(vals)
+    return float(np.min(vals))
 
 
 def probe_reason(apply, n: int, probes: int, name: str) -> str:
     """Empty when ``probes`` random Rayleigh quotients of M are finite and positive, else why not."""
-    if not probes:
+    return rayleigh_reason(min_rayleigh(apply, n, probes) if probes else None, name)
+
+
+def rayleigh_reason(lo, name: str) -> str:
+    """Empty when the smallest probed Rayleigh quotient ``lo`` is finite and positive (None: no probe)."""
+    if lo is None:
         return ""
-    lo = min_rayleigh(apply, n, probes)
     if not np.isfinite(lo):
         return f"{name} apply is not finite"
     if lo <= 0:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .ordering import _check_square, choose_ordering
 
@@ -113,11 +114,23 @@ def _metis_graph(A):
     return G.indptr, G.indices
 
 
+def _within_parts_rcm(A, parts):
+    """Each row's position in the reverse Cuthill-McKee order of the graph of A without its cut edges."""
+    C = A.tocoo()
+    keep = parts[C.row] == parts[C.col]
+    G = sp.csr_matrix((np.ones(int(keep.sum())), (C.row[keep], C.col[keep])), shape=A.shape)
+    order = reverse_cuthill_mckee(G, symmetric_mode=False)
+    position = np.empty(A.shape[0], dtype=np.int64)
+    position[order] = np.arange(A.shape[0])
+    return position
+
+
 def metis_leaves(A, leaf=128, seed=0) -> Leaves:
     """METIS k-way parts of A's graph, ceil(n / leaf) of them, as leaves.
 
-    The partition is deterministic for a given ``seed``; empty parts are dropped
-    and rows keep their relative order within a part.
+    The partition is deterministic for a given ``seed``; empty parts are dropped and
+    the rows of a part are in the reverse Cuthill-McKee order of the part's own graph, so
+    that position within a leaf is a smooth coordinate whatever the given row order.
     """
     import pymetis
 
@@ -132,7 +145,7 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
         _, parts = pymetis.part_graph(nparts, pymetis.CSRAdjacency(*_metis_graph(A)),
                                       options=pymetis.Options(seed=int(seed)))
         parts = np.asarray(parts, dtype=np.int64)
-    perm = np.argsort(parts, kind="stable")
+    perm = np.lexsort((_within_parts_rcm(A, parts), parts))
     sizes = np.bincount(parts, minlength=nparts)
     offsets = np.concatenate(([0], np.cumsum(sizes[sizes > 0])))
     return Leaves(perm, offsets, "metis", (time.perf_counter() - t0) * 1e3)

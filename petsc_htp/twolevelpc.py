@@ -4,13 +4,13 @@
 
 - leaves: each rank's rows cut into leaves of about ``leaf`` rows (Morton with coordinates,
   METIS of the rank's block otherwise; :func:`petsc_htp.leaves.choose_leaves`);
-- B: exact Cholesky solves on the leaves: ``PCBJACOBI`` when the leaves are contiguous blocks of
-  the rank's rows (the given order is the leaves' order), else ``PCASM`` with one non-overlapping
-  subdomain per leaf;
-- W: a parallel AIJ matrix with r columns per leaf, the coarse space of :mod:`petsc_htp.twolevel`
-  computed on the rank's local Neumann block (couplings to other ranks folded into the diagonal,
-  so a leaf sees the same local matrix whatever the number of ranks): the coarse space is global;
-- W^T A W: ``MatPtAP``, solved by a redundant Cholesky on every rank. When A has the constant
+- B: exact leaf solves, one sparse Cholesky factor per rank of D = blockdiag(A_kk) (A without its
+  couplings between leaves), applied by ``PCBJACOBI`` on D with one block per rank;
+- W: a parallel AIJ matrix with r columns per leaf, the coarse space of each leaf's local Neumann
+  matrix (its block with every off-leaf coupling, to other leaves and other ranks, folded into the
+  diagonal, so a leaf sees the same matrix whatever the number of ranks): the coarse space is global.
+  'eig' vectors come from :mod:`petsc_htp.leafmodes` (one sparse factor for all leaves);
+- W^T A W: W^T (A W) by ``MatTransposeMatMult`` (A W and the explicit transposes serve the apply), solved by a redundant Cholesky on every rank. When A has the constant
   null space, every leaf's first column is its exact constant and one leaf's is left out, so W
   spans A's range part of the same space and W^T A W is nonsingular.
 
@@ -27,22 +27,10 @@ import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
 
-from . import twolevel
+from . import leafmodes, twolevel
+from .checks import rayleigh_reason
 from .coarsenet import learned_basis
 from .leaves import Leaves, choose_leaves
-
-
-def local_neumann_block(mat, rows) -> sp.csr_matrix:
-    """This rank's diagonal block of ``mat`` with its couplings to other ranks added to the diagonal.
-
-    ``rows`` are this rank's rows of ``mat`` as scipy CSR with global columns.
-    """
-    start, end = mat.getOwnershipRange()
-    block = rows[:, start:end].tocsr()
-    outside = np.asarray(rows.sum(axis=1)).ravel() - np.asarray(block.sum(axis=1)).ravel()
-    block = (block + sp.diags(outside)).tocsr()
-    block.sort_indices()
-    return block
 
 
 def _has_constant_null(mat) -> bool:
@@ -55,33 +43,61 @@ def _has_constant_null(mat) -> bool:
 
 @dataclass
 class Analysis:
-    """Per-pattern state: the rank's leaves, their index sets, the torch analysis of the local block."""
+    """Per-pattern state of this rank's rows.
+
+    ``leaf_of`` is each local row's leaf; ``entry_row`` each stored entry's local row; ``inside``
+    the stored entries that couple two rows of one leaf, and ``D_indptr``/``D_indices`` their CSR
+    structure (local columns); ``pos``/``mask`` the padded (K, Lmax) layout; ``local`` the torch
+    analysis that the learned coarse network reads (None for const and eig).
+    """
 
     leaves: Leaves
-    local: twolevel.TwoLevelAnalysis
+    leaf_of: np.ndarray
+    entry_row: np.ndarray
+    inside: np.ndarray
+    D_indptr: np.ndarray
+    D_indices: np.ndarray
+    pos: np.ndarray
+    mask: torch.Tensor
+    local: twolevel.TwoLevelAnalysis | None
     coords: np.ndarray | None
     contiguous: bool
-    subdomains: list
     first_leaf: int
     n_leaves_total: int
     analysis_ms: float
 
+    @property
+    def ordering(self) -> str:
+        """Fill-reducing ordering for the leaf factors: the rows' own when leaves are row blocks."""
+        return "natural" if self.contiguous else "nd"
 
-def analyse(mat, rows, coords=None, layout="auto", leaf=128, device="cpu") -> Analysis:
-    """Leaves of this rank's rows and the pattern analysis of its local Neumann block."""
+
+def analyse(mat, rows, coords=None, layout="auto", leaf=128, device="cpu", learned=False) -> Analysis:
+    """Leaves of this rank's rows (``rows``: scipy CSR, global columns) and the maps the numeric step uses."""
     t0 = time.perf_counter()
-    block = local_neumann_block(mat, rows)
-    leaves = choose_leaves(block, coords, layout, leaf)
-    start = mat.getOwnershipRange()[0]
-    subdomains = [PETSc.IS().createGeneral(np.sort(leaves.perm[a:b]).astype(PETSc.IntType) + start,
-                                           comm=PETSc.COMM_SELF)
-                  for a, b in zip(leaves.offsets[:-1], leaves.offsets[1:])]
+    start, end = mat.getOwnershipRange()
+    n = end - start
+    pattern = rows[:, start:end].tocsr()
+    leaves = choose_leaves(pattern, coords, layout, leaf)
+    leaf_of = np.empty(n, dtype=np.int64)
+    leaf_of[leaves.perm] = np.repeat(np.arange(leaves.n_leaves), leaves.sizes)
+    entry_row = np.repeat(np.arange(n), np.diff(rows.indptr))
+    col = rows.indices.astype(np.int64) - start
+    inside = (col >= 0) & (col < n)
+    inside[inside] = leaf_of[entry_row[inside]] == leaf_of[col[inside]]
+    pos = np.empty(n, dtype=np.int64)
+    pos[leaves.perm] = twolevel._padded_positions(leaves)
+    mask = torch.zeros(leaves.n_leaves * leaves.max_size, dtype=torch.float64)
+    mask[pos] = 1.0
+    local = twolevel.analyse(pattern, leaves, device) if learned else None
     mpi = mat.getComm().tompi4py()
     first = mpi.exscan(leaves.n_leaves) or 0
-    in_order = np.array_equal(leaves.perm, np.arange(leaves.n))      # leaves are blocks of the rows
-    contiguous = mpi.allreduce(int(not in_order)) == 0               # (on every rank: one PC type)
-    return Analysis(leaves, twolevel.analyse(block, leaves, device), coords, contiguous, subdomains, first,
-                    mpi.allreduce(leaves.n_leaves), 1e3 * (time.perf_counter() - t0))
+    in_order = np.array_equal(leaves.perm, np.arange(n))             # leaves are blocks of the rows
+    contiguous = mpi.allreduce(int(not in_order)) == 0
+    return Analysis(leaves, leaf_of, entry_row, inside,
+                    np.concatenate(([0], np.cumsum(np.bincount(entry_row[inside], minlength=n)))),
+                    col[inside], pos, mask.view(leaves.n_leaves, leaves.max_size), local, coords, contiguous,
+                    first, mpi.allreduce(leaves.n_leaves), 1e3 * (time.perf_counter() - t0))
 
 
 def _with_exact_constants(P, mask):
@@ -92,8 +108,34 @@ def _with_exact_constants(P, mask):
     return torch.cat([const[:, :, None], q * mask[:, :, None]], dim=2)
 
 
+def _local_neumann_block(mat, rows) -> sp.csr_matrix:
+    """This rank's diagonal block of ``mat`` with its couplings to other ranks added to the diagonal."""
+    start, end = mat.getOwnershipRange()
+    block = rows[:, start:end].tocsr()
+    outside = np.asarray(rows.sum(axis=1)).ravel() - np.asarray(block.sum(axis=1)).ravel()
+    block = (block + sp.diags(outside)).tocsr()
+    block.sort_indices()
+    return block
+
+
+class _Defaults:
+    """Options under ``prefix`` that the user did not give, set for one setup and removed after it."""
+
+    def __init__(self, prefix: str, values: dict):
+        self.db, self.values = PETSc.Options(prefix), values
+
+    def __enter__(self):
+        self.added = [name for name in self.values if not self.db.hasName(name)]
+        for name in self.added:
+            self.db.setValue(name, self.values[name])
+
+    def __exit__(self, *exc):
+        for name in self.added:
+            self.db.delValue(name)
+
+
 class Composed:
-    """The numeric step: W, W^T A W and its redundant Cholesky, the ASM leaf solves, work vectors.
+    """The numeric step: W, W^T A W and its redundant Cholesky, the leaf factor, work vectors.
 
     ``coarse`` is const, eig (``rank`` vectors) or learned (the basis of ``net``, a
     :class:`~petsc_htp.coarsenet.CoarseNet`, from the matrix, the analysis' coordinates and ``density``).
@@ -102,74 +144,72 @@ class Composed:
     def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_",
                  net=None, density=None):
         t0 = time.perf_counter()
-        self.analysis, self.coarse = analysis, coarse
-        self.A = mat
-        block = local_neumann_block(mat, rows)
-        lv, local = analysis.leaves, analysis.local
-        if coarse == "learned":
-            basis = learned_basis(net, local, block, analysis.coords, density)
-            P = twolevel.coarse_space(local, block, "given", basis=basis)
+        a = self.analysis = analysis
+        self.coarse, self.A = coarse, mat
+        n = a.leaf_of.size
+        D = sp.csr_matrix((rows.data[a.inside], a.D_indices, a.D_indptr), shape=(n, n))
+        if coarse == "const":
+            P = (a.mask / a.mask.sum(1, keepdim=True).sqrt())[:, :, None]
         else:
-            P = twolevel.coarse_space(local, block, coarse, rank)
+            seeds = None
+            if coarse == "learned":
+                seeds = learned_basis(net, a.local, _local_neumann_block(mat, rows), a.coords, density).cpu()
+            S = leafmodes.neumann_matrix(D, np.bincount(a.entry_row, rows.data, minlength=n), a.leaf_of)
+            P = leafmodes.modes(S, a.pos, a.mask, rank if seeds is None else seeds.shape[2], a.ordering, seeds)
         self.null = _has_constant_null(mat)
         if self.null:
-            P = _with_exact_constants(P, local.mask)
+            P = _with_exact_constants(P, a.mask)
         self.rank = P.shape[2]
         t1 = time.perf_counter()
-        self.W = self._space(mat, P.cpu().numpy(), lv, local)
-        self.E = mat.ptap(self.W)
-        db = PETSc.Options(prefix)
-        for name, value in (("cs_redundant_pc_type", "cholesky"), ("cs_redundant_pc_factor_shift_type", "nonzero"),
-                            ("leaf_sub_ksp_type", "preonly"), ("leaf_sub_pc_type", "cholesky"),
-                            ("leaf_sub_pc_factor_shift_type", "nonzero")):
-            if not db.hasName(name):                      # defaults; -<prefix>htp_cs_* / leaf_* override
-                db.setValue(name, value)
+        self.W = self._space(mat, P.numpy())
+        self.AW = mat.matMult(self.W)
+        self.E = self.W.transposeMatMult(self.AW)
+        self.Wt, self.AWt = self.W.transpose(PETSc.Mat()), self.AW.transpose(PETSc.Mat())
         self.coarse_ksp = PETSc.KSP().create(mat.getComm())
         self.coarse_ksp.setOptionsPrefix(prefix + "cs_")
         self.coarse_ksp.setOperators(self.E, self.E)
         self.coarse_ksp.setType("preonly")
         self.coarse_ksp.getPC().setType("redundant")
-        self.coarse_ksp.setFromOptions()
-        self.coarse_ksp.setUp()
+        with _Defaults(prefix + "cs_", {"redundant_pc_type": "cholesky", "redundant_pc_factor_shift_type": "nonzero",
+                                        "redundant_pc_factor_mat_ordering_type": "nd"}):
+            self.coarse_ksp.setFromOptions()
+            self.coarse_ksp.setUp()
         t2 = time.perf_counter()
+        start = mat.getOwnershipRange()[0]
+        self.D = PETSc.Mat().createAIJ(size=(mat.getSizes()[0], mat.getSizes()[0]), comm=mat.getComm(),
+                                       csr=(a.D_indptr.astype(PETSc.IntType),
+                                            (a.D_indices + start).astype(PETSc.IntType), D.data))
         self.B = PETSc.PC().create(mat.getComm())
         self.B.setOptionsPrefix(prefix + "leaf_")
-        self.B.setOperators(mat, mat)
-        if analysis.contiguous:                           # PCBJACOBI's own equal split is the leaves
-            self.B.setType("bjacobi")
-            PETSc.Options(prefix + "leaf_").setValue("pc_bjacobi_local_blocks", lv.n_leaves)
-        else:
-            self.B.setType("asm")
-            self.B.setASMLocalSubdomains(len(analysis.subdomains), analysis.subdomains)
-            self.B.setASMOverlap(0)
-            self.B.setASMType(PETSc.PC.ASMType.BASIC)
-        self.B.setFromOptions()
-        self.B.setUp()
-        self.B.setUpOnBlocks()
+        self.B.setOperators(self.D, self.D)
+        self.B.setType("bjacobi")
+        with _Defaults(prefix + "leaf_", {"sub_ksp_type": "preonly", "sub_pc_type": "cholesky",
+                                          "sub_pc_factor_shift_type": "nonzero",
+                                          "sub_pc_factor_mat_ordering_type": a.ordering}):
+            self.B.setFromOptions()
+            self.B.setUp()
+            self.B.setUpOnBlocks()
         t3 = time.perf_counter()
         self.times = {"coarse_space": 1e3 * (t1 - t0), "coarse_operator": 1e3 * (t2 - t1),
                       "leaf": 1e3 * (t3 - t2)}
-        self.c1, self.c2 = self.E.createVecs()
-        self.t, self.u, self.v = (mat.createVecLeft() for _ in range(3))
+        self.c1, self.c2, self.c3 = (self.E.createVecLeft() for _ in range(3))
+        self.u, self.v = mat.createVecLeft(), mat.createVecLeft()
         self.setup_ms = 1e3 * (t3 - t0)
 
-    def _space(self, mat, P, lv: Leaves, local) -> PETSc.Mat:
+    def _space(self, mat, P) -> PETSc.Mat:
         """W: rank-local rows, columns (global leaf, vector), one leaf's constant left out under a null space."""
-        K, L = local.shape
-        r = P.shape[2]
         a = self.analysis
+        K, r = a.leaves.n_leaves, P.shape[2]
         start, end = mat.getOwnershipRange()
         drop = self.null and a.first_leaf + K == a.n_leaves_total      # the globally last leaf lives here
-        pos = local.pos.cpu().numpy()                    # padded slot of every permuted local row
-        leaf = pos // L
-        vals = P.reshape(K * L, r)[pos]                   # (n_local, r), rows in permuted order
-        cols = ((a.first_leaf + leaf) * r)[:, None] + np.arange(r)[None, :]
+        vals = P.reshape(-1, r)[a.pos]                   # (n_local, r) in the rank's row order
+        cols = ((a.first_leaf + a.leaf_of) * r)[:, None] + np.arange(r)[None, :]
         keep = np.ones(cols.shape, dtype=bool)
         if drop:
-            last = leaf[:, None] == K - 1
+            last = a.leaf_of[:, None] == K - 1
             keep &= ~(last & (np.arange(r)[None, :] == 0))
             cols = cols - last
-        rows = np.broadcast_to(lv.perm[:, None], cols.shape)
+        rows = np.broadcast_to(np.arange(end - start)[:, None], cols.shape)
         local_W = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])),
                                 shape=(end - start, a.n_leaves_total * r - self.null))
         local_W.sort_indices()
@@ -180,45 +220,36 @@ class Composed:
         W.assemble()
         return W
 
-    def _q(self, x, out):
-        """out = W (W^T A W)^-1 W^T x."""
-        self.W.multTranspose(x, self.c1)
-        self.coarse_ksp.solve(self.c1, self.c2)
-        self.W.mult(self.c2, out)
-
     def mult(self, x, y):
-        """y = M x = t + v - Q A v with t = Q x, v = B (x - A t)."""
-        self._q(x, self.t)
-        self.A.mult(self.t, self.u)
-        self.u.aypx(-1.0, x)
+        """y = M x = Q x + v - Q A v with v = B (x - A Q x), through AW and the explicit transposes."""
+        self.Wt.mult(x, self.c1)
+        self.coarse_ksp.solve(self.c1, self.c2)           # c2 = E^-1 W^T x
+        self.AW.mult(self.c2, self.u)
+        self.u.aypx(-1.0, x)                              # u = x - A Q x
         self.B.apply(self.u, self.v)
-        self.A.mult(self.v, self.u)
-        self.u.aypx(-1.0, x)
-        self._q(self.u, y)                                # Q (x - A v) = t - Q A v
+        self.AWt.mult(self.v, self.c1)
+        self.coarse_ksp.solve(self.c1, self.c3)           # c3 = E^-1 W^T A v
+        self.c3.aypx(-1.0, self.c2)
+        self.W.mult(self.c3, y)
         y.axpy(1.0, self.v)
 
     def check(self, probes: int) -> str:
         """Empty when M is finite and positive on ``probes`` random vectors (collective)."""
         x, y = self.A.createVecs()
         rng = PETSc.Random().create(self.A.getComm())
-        worst = np.inf
+        quotients = []
         for _ in range(probes):
             x.setRandom(rng)
             self.mult(x, y)
-            worst = min(worst, x.dot(y) / x.dot(x))
+            quotients.append(x.dot(y) / x.dot(x))
         rng.destroy()
-        if not np.isfinite(worst):
-            return "two-level apply is not finite"
-        if worst <= 0:
-            return f"Rayleigh probe found M indefinite (min r^T M r / r^T r = {worst:.3e})"
-        return ""
+        return rayleigh_reason(np.min(quotients) if quotients else None, "two-level")
 
     @property
     def nbytes(self) -> int:
-        """Bytes held on this rank: W, W^T A W, and the leaf Cholesky factors (8 bytes a value)."""
-        held = self.W.getInfo()["nz_used"] + self.E.getInfo()["nz_used"]
-        subs = self.B.getBJacobiSubKSP() if self.analysis.contiguous else self.B.getASMSubKSP()
-        held += sum(sub.getPC().getFactorMatrix().getInfo()["nz_used"] for sub in subs)
+        """Bytes held on this rank: W, A W, their transposes, W^T A W, the leaf Cholesky factor (8 bytes a value)."""
+        held = sum(m.getInfo()["nz_used"] for m in (self.W, self.Wt, self.AW, self.AWt, self.E))
+        held += sum(sub.getPC().getFactorMatrix().getInfo()["nz_used"] for sub in self.B.getBJacobiSubKSP())
         return int(8 * held)
 
     def describe(self) -> list:
@@ -226,8 +257,8 @@ class Composed:
         a, lv, t = self.analysis, self.analysis.leaves, self.times
         n = self.A.getSize()[0]
         return [f"leaves: {lv.kind}, {a.n_leaves_total} in all ({lv.n_leaves} on this rank), sizes "
-                f"{lv.sizes.min()}-{lv.max_size}; exact Cholesky on each "
-                f"({'PCBJACOBI' if a.contiguous else 'PCASM, no overlap'})",
+                f"{lv.sizes.min()}-{lv.max_size}; exact solves by one Cholesky factor of blockdiag(A_kk) per rank "
+                f"(PCBJACOBI, {a.ordering} ordering)",
                 f"coarse: {self.coarse}, r={self.rank}, global size {self.E.getSize()[0]}"
                 + ("; A's constant null space left out of W" if self.null else ""),
                 f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
@@ -238,5 +269,6 @@ class Composed:
 
     def destroy(self):
         """Free the PETSc objects."""
-        for obj in (self.W, self.E, self.coarse_ksp, self.B, self.c1, self.c2, self.t, self.u, self.v):
+        for obj in (self.W, self.Wt, self.AW, self.AWt, self.E, self.coarse_ksp, self.B, self.D, self.c1, self.c2, self.c3,
+                    self.u, self.v):
             obj.destroy()

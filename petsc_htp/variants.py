@@ -67,7 +67,8 @@ class TwoLevel:
 
     def analyse(self, mat, A, coords):
         """Leaves of each rank's rows (Morton with coordinates, else METIS) and their index sets."""
-        return twolevelpc.analyse(mat, A, coords, self.opts.ordering, self.opts.leaf, self.device)
+        return twolevelpc.analyse(mat, A, coords, self.opts.ordering, self.opts.leaf, self.device,
+                                  learned=self.opts.coarse == "learned")
 
     def numeric(self, analysis, mat, A, density, previous):
         """Coarse space, W^T A W and its Cholesky, the leaves' Cholesky factors."""

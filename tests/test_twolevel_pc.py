@@ -77,14 +77,14 @@ def test_bare_permuted_matrix(frames, coarse):
         assert ctx.setup.analysis.leaves.kind.startswith("metis")
 
 
-def test_attached_geometry_uses_morton_leaves_and_same_iterations(frames):
+def test_attached_geometry_uses_morton_leaves_and_no_more_iterations(frames):
     frame = frames[0]
     mat = petsc_mat(frame.A)
     _, bare_its, _, _ = solve(mat, frame.b)
     petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
     reason, its, relres, ksp = solve(mat, frame.b)
     assert reason > 0 and relres <= 1.01e-8 and its <= 35
-    assert abs(its - bare_its) <= 5
+    assert its <= bare_its <= 35
     assert ksp.getPC().getPythonContext().setup.analysis.leaves.kind.startswith("morton")
 
 

@@ -200,30 +200,39 @@ def _solve(method, prefix, problem, monitor):
         return exception_row(method, problem, exc)
 
 
-def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
-    """Solve every problem with one method; one row each.
+def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
+    """Solve every problem with every method; one row each, frame by frame.
 
-    The options stay loaded for the whole list; with ``warmup`` the first
-    problem of every N is solved once more beforehand and that solve is
-    discarded. ``tick()`` is called after every recorded solve.
+    Each frame is solved by all methods in turn, so a machine whose speed drifts during the
+    run slows every method alike. The options stay loaded for the whole list; with ``warmup``
+    the first problem of every N is solved once more by each method beforehand and that solve
+    is discarded. ``tick()`` is called after every recorded solve.
     """
+    loaded, failed = [], {}
     try:
-        loaded = load(method, extra) if method.is_petsc else None
-    except Exception as exc:  # unreadable options file: every problem fails
-        rows = []
+        for method in methods:
+            try:
+                if method.is_petsc:
+                    loaded.append(load(method, extra))
+            except Exception as exc:  # unreadable options file: every problem fails
+                failed[method.name] = exc
+        rows, warmed = [], set()
         for problem in problems:
-            rows.append(exception_row(method, problem, exc))
-            tick()
-        return rows
-    rows, warmed = [], set()
-    try:
-        for problem in problems:
-            if warmup and problem.n not in warmed:
-                warmed.add(problem.n)
-                _solve(method, method.prefix, problem, False)
-            rows.append(_solve(method, method.prefix, problem, monitor))
-            tick()
+            for method in methods:
+                if method.name in failed:
+                    rows.append(exception_row(method, problem, failed[method.name]))
+                elif warmup and (method.name, problem.n) not in warmed:
+                    warmed.add((method.name, problem.n))
+                    _solve(method, method.prefix, problem, False)
+                if method.name not in failed:
+                    rows.append(_solve(method, method.prefix, problem, monitor))
+                tick()
     finally:
-        if loaded is not None:
-            loaded.__exit__(None, None, None)
+        for entry in reversed(loaded):
+            entry.__exit__(None, None, None)
     return rows
+
+
+def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
+    """:func:`run_methods` for one method."""
+    return run_methods([method], problems, extra, monitor, warmup, tick)

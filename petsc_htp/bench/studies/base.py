@@ -176,10 +176,10 @@ class Study(ABC):
 
 
 def solve_all(methods, problems, extra, tick, study, **kw) -> list:
-    """Every method on every problem (methods outermost), rows tagged with ``study``."""
-    from ..runner import run_method
+    """Every method on every problem (frames outermost), rows tagged with ``study``."""
+    from ..runner import run_methods
 
-    return [tag(row, study=study) for m in methods for row in run_method(m, problems, extra, tick=tick, **kw)]
+    return [tag(row, study=study) for row in run_methods(methods, problems, extra, tick=tick, **kw)]
 
 
 def tag(row, **fields) -> dict:
