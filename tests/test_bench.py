@@ -1,6 +1,7 @@
 """petsc-htp bench: a quick end-to-end run through real PETSc, report regeneration, README, failures."""
 import json
 import os
+import re
 import shutil
 
 import numpy as np
@@ -348,21 +349,24 @@ def test_trained_model_studies(env, tmp_path):
     cli.finish(out)
 
     gen = rows["generalization"]
-    assert len(gen) == 4 * 3 and {r["train"] for r in gen} == {None, "full", "no_closed"}
-    assert all(r["ok"] for r in gen if r["method"] == "cg_jacobi")
+    assert len(gen) == 4 * (3 + len(generalization.VARIANTS)) and {r["train"] for r in gen} == {None, "full", "no_closed"}
+    assert all(r["ok"] for r in gen if r["method"] == "cg_jacobi" or r.get("variant"))
+    assert {r["variant"] for r in gen if r.get("variant")} == set(generalization.VARIANTS)
     assert {r["config"]: r["params"] for r in rows["size"]} == {
         "d=32, n_l=1, hw, cosine": HTPNet(cfg).n_params(), "d=64, n_l=1, no-hw, sai": HTPNet(wide).n_params()}
     prof = aggregate.group(rows["profile"], "kind")
     assert [r["step"] for r in prof[("train",)]][:2] == [1, 2] and len(prof[("baseline",)]) == 2
     spec = {r["method"]: r for r in prof[("spectrum",)]}
-    assert set(spec) == {"none", "jacobi", "htp"} and len(spec["none"]["eigs"]) == 255
+    assert set(spec) == {"none", "jacobi", "htp", *profile.VARIANTS} and len(spec["none"]["eigs"]) == 255
     assert spec["jacobi"]["kappa"] < spec["none"]["kappa"]
+    assert all(not spec[v]["indefinite"] and spec[v]["kappa"] < spec["jacobi"]["kappa"] / 10 for v in profile.VARIANTS)
 
     report = (out / "report.md").read_text()
     for heading in ("## 5. Generalization", "## 6. Model size", "## 7. Training profile"):
         assert heading in report
     assert "at most 2 steps and 0.5 min per model" in report
     assert "| Full / in-distribution |" in report and "| Excl. closed barriers |" in report
+    assert "| cg_twolevel_eig |" in report and "Two-level variants on the same frames" in report
     assert "Smallest configuration within 10% of the fastest" in report
     para = STUDIES["size"].readme(load(out), "")
     assert "**Model size**" in para and "`d=32, n_l=1, hw, cosine`" in para and "at most 2 steps" in para
@@ -373,6 +377,21 @@ def test_trained_model_studies(env, tmp_path):
     assert main(["--quick", "--out", str(cli_out), "--studies", "profile", "--train-log",
                  str(path.parent / "train_log.jsonl"), *env["common"]]) == 0
     assert "## 7. Training profile" in (cli_out / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_rank_study_sweeps_eig_against_learned(env, tmp_path):
+    out = tmp_path / "rank"
+    assert main(["--quick", "--out", str(out), "--studies", "rank", "--ranks", "1", "2", *env["common"]]) == 0
+    rows = rows_of(out, "rank")
+    assert {r["method"] for r in rows} == {"eig_r1", "eig_r2", "cg_twolevel_learned"}
+    assert all(r["ok"] for r in rows)
+    by = aggregate.cells(rows, "method")
+    assert by[("eig_r2",)]["iterations"]["mean"] <= by[("eig_r1",)]["iterations"]["mean"]
+    assert by[("eig_r2",)]["bytes_per_unknown"]["median"] > by[("eig_r1",)]["bytes_per_unknown"]["median"]
+    report = (out / "report.md").read_text()
+    assert "## Coarse-space size (two-level variant)" in report and "| eig | 2 |" in report
+    assert re.search(r"learned \(r = 4\) \d+ its, eig reaches it (at r = \d|at no r ≤ 2)", report)
 
 
 def test_fastpath_study_runs_on_this_machine(env, tmp_path):

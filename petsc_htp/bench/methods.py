@@ -13,10 +13,11 @@ DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "c
 
 @dataclass(frozen=True)
 class Method:
-    """One benchmarked method: an options file, or pyamg when ``path`` is None."""
+    """One benchmarked method: an options file (plus ``extra`` option pairs), or pyamg when ``path`` is None."""
 
     name: str
     path: Path | None = None
+    extra: tuple = ()
 
     @property
     def is_petsc(self) -> bool:

@@ -38,7 +38,7 @@ def htp_options(checkpoint=None, device=None, threads=0) -> list:
 
 def load(method, extra=()) -> Loaded:
     """The method's options file under its prefix, plus ``extra``, without the print-only options."""
-    loaded = Loaded(method.path, prefix=method.prefix, extra=extra)
+    loaded = Loaded(method.path, prefix=method.prefix, extra=list(extra) + list(method.extra))
     loaded.__enter__()
     for name in PRINT_ONLY:
         PETSc.Options(method.prefix).delValue(name)

@@ -41,10 +41,39 @@ def spectrum_row(name, frame, M=None) -> dict:
             "kappa": condition_number(eigs), "indefinite": indefinite, "asymmetry": asym}
 
 
-def spectrum_rows(frame, htp=None) -> list:
-    """Spectra of A (no preconditioner), D^-1 A (Jacobi) and, with a loaded HTP, M A."""
+def petsc_operator(method, frame) -> np.ndarray:
+    """The dense M of a method's PC (an options-file name) on ``frame``, geometry attached, through PETSc."""
+    from petsc4py import PETSc
+
+    from ..methods import Loaded
+    from ..petscmat import attach, frame_mat
+
+    A = frame_mat(frame)
+    attach(A, coords=frame.coords, density=frame.rho)
+    with Loaded(method, prefix="spectrum_"):
+        pc = PETSc.PC().create(A.getComm())
+        pc.setOptionsPrefix("spectrum_")
+        pc.setOperators(A, A)
+        pc.setFromOptions()
+        pc.setUp()
+    x, y = A.createVecs()
+
+    def apply(v):
+        x.array_w[...] = v
+        pc.apply(x, y)
+        return y.array_r.copy()
+
+    try:
+        return dense_operator(apply, frame.n)
+    finally:
+        for obj in (pc, x, y, A):
+            obj.destroy()
+
+
+def spectrum_rows(frame, htp=None, methods=()) -> list:
+    """Spectra of A (no preconditioner), D^-1 A (Jacobi), with a loaded HTP its M A, and M A of ``methods``."""
     rows = [spectrum_row("none", frame), spectrum_row("jacobi", frame, np.diag(1.0 / frame.A.diagonal()))]
     if htp is not None:
         setup = htp.setup(frame.A, coords=frame.coords, density=frame.rho)
         rows.append(spectrum_row("htp", frame, dense_operator(setup.apply, frame.n)))
-    return rows
+    return rows + [spectrum_row(m, frame, petsc_operator(m, frame)) for m in methods]

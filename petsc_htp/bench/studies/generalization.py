@@ -25,6 +25,7 @@ EVAL_SETS = (
     ("high_contrast", "High contrast (25, 100]"),
     ("closed_high", "Closed + high contrast"),
 )
+VARIANTS = ("cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned")   # no training per distribution
 COMPLEMENT = {"full": "full", "closed_only": "no_closed", "high_contrast": "low_contrast",
               "closed_high": "no_closed_low_contrast"}
 
@@ -46,7 +47,7 @@ def train_models(out, cfg, budget) -> dict:
 
 
 def run(models, n, frames, extra, tick) -> list:
-    """Every model (``{train set: checkpoint}``) on every eval set; CG + Jacobi on the same frames as baseline."""
+    """Every model (``{train set: checkpoint}``) and two-level variant on every eval set; CG + Jacobi as baseline."""
     from ..methods import resolve_method
     from ..runner import htp_options, run_method
     from ..training import model_info
@@ -57,6 +58,9 @@ def run(models, n, frames, extra, tick) -> list:
         problems = eval_problems(name, n, frames)
         got = run_method(jac, problems, extra, tick=tick)
         rows += [tag(r, study="generalization", eval=name, train=None) for r in got]
+        for variant in VARIANTS:
+            got = run_method(resolve_method(variant), problems, extra, tick=tick)
+            rows += [tag(r, study="generalization", eval=name, train=None, variant=variant) for r in got]
         for train_set, path in models.items():
             info = model_info(path)
             got = run_method(htp, problems, extra + htp_options(checkpoint=path), tick=tick)
@@ -77,7 +81,7 @@ def _config_label(rows):
 
 def chart(res, out) -> str:
     """Train × eval distribution: log10 mean HTP iterations, annotated."""
-    by = cells([r for r in res.rows["generalization"] if r.get("train")], "train", "eval")
+    by = cells([r for r in res.rows["generalization"] if r.get("train") and not r.get("variant")], "train", "eval")
     values = np.full((len(TRAIN_SETS), len(EVAL_SETS)), np.nan)
     labels = np.full(values.shape, "", dtype=object)
     for (i, (tr, _)), (j, (ev, _)) in ((a, b) for a in enumerate(TRAIN_SETS) for b in enumerate(EVAL_SETS)):
@@ -94,6 +98,24 @@ def chart(res, out) -> str:
     return save(fig, out, CHART)
 
 
+def _variant_grid(res, evals, jac) -> list:
+    """Rows of the two-level variants' table: iterations, Δ_OOD and speedup per eval set."""
+    by = cells([r for r in res.rows["generalization"] if r.get("variant")], "variant", "eval")
+    out = []
+    for variant in VARIANTS:
+        base = by.get((variant, "full"))
+        row = [variant]
+        for ev in evals:
+            c = by.get((variant, ev))
+            ok = c and c["total_ms"]["count"]
+            delta = c["iterations"]["mean"] / base["iterations"]["mean"] if ok and base else math.nan
+            row.append("—" if not ok else f"{pm(c['iterations'], its)} · Δ {delta:.2f} · "
+                                          f"{ratio(jac.get(ev, math.nan) / c['total_ms']['mean'])}"
+                       + (f" ✗{c['failed']}" if c["failed"] else ""))
+        out.append(row)
+    return out
+
+
 class Generalization(Study):
     """Trains one model per training distribution; CG + HTP on every eval distribution."""
 
@@ -107,14 +129,14 @@ class Generalization(Study):
         return {"generalization": {"n": settings["gen_n"], "frames": settings["gen_frames"]}}
 
     def expected_solves(self, ctx):
-        return len(EVAL_SETS) * (1 + len(TRAIN_SETS)) * ctx.settings["gen_frames"]
+        return len(EVAL_SETS) * (1 + len(VARIANTS) + len(TRAIN_SETS)) * ctx.settings["gen_frames"]
 
     def measure(self, ctx, tick):
         models = train_models(ctx.out, ctx.config, ctx.budget)
         return run(models, ctx.settings["gen_n"], ctx.settings["gen_frames"], ctx.extra, tick)
 
     def section(self, res):
-        rows = res.rows["generalization"]
+        rows = [r for r in res.rows["generalization"] if not r.get("variant")]
         by = cells(rows, "train", "eval")
         jac = {ev: c["total_ms"]["mean"] for (tr, ev), c in by.items() if tr is None}
         g = res.meta.get("generalization", {})
@@ -150,6 +172,10 @@ class Generalization(Study):
             "Full column) · speedup against Jacobi:",
             md_table(["Train \\ eval"] + [names[e] for e in evals], grid),
             image(CHART, "Generalization grid"),
+            "Two-level variants on the same frames (nothing trained per distribution; `learned` is the shipped "
+            "coarse network, trained on Full): mean ± std iterations · Δ_OOD against the variant's own Full "
+            "column · speedup against Jacobi:",
+            md_table(["Variant"] + [names[e] for e in evals], _variant_grid(res, evals, jac)),
         ])
 
     def charts(self, res, out):

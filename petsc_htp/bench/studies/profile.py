@@ -14,6 +14,7 @@ from ..store import read_jsonl
 from .base import TRAINING, Size, Study, tag
 
 CHART = "profile.png"
+VARIANTS = ("cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned")   # spectra beside the paper's HTP
 SPECTRUM_CHART = "spectrum.png"
 
 
@@ -79,7 +80,7 @@ def run(log_path, ckpt, spectrum_n) -> list:
     rows += [{"kind": "train", **r} for r in train]
     rows += _baseline_rows(train, _log_provenance(log_path, ckpt))
     frame = held_out_frames(spectrum_n, 1)[0]
-    rows += [{"kind": "spectrum", **r} for r in spectrum_rows(frame, HTP.load(ckpt, device="cpu"))]
+    rows += [{"kind": "spectrum", **r} for r in spectrum_rows(frame, HTP.load(ckpt, device="cpu"), VARIANTS)]
     return [tag(r, study="profile") for r in rows]
 
 
@@ -195,7 +196,9 @@ class Profile(Study):
             f"{baseline}.",
             image(CHART, "Training profile"),
             f"Spectrum of M A on the first held-out frame at N = {n_label(spec[0]['n']) if spec else '?'} "
-            f"(dense eigendecomposition, null-space eigenvalue removed; HTP from `{source.get('checkpoint', '?')}`). "
+            "(dense eigendecomposition, null-space eigenvalue removed; "
+            f"HTP from `{source.get('checkpoint', '?')}`; the two-level variants through HTPPC with their options "
+            "files). "
             "κ = max|λ| / min|λ|; reduction against no preconditioner:",
             md_table(["M", "κ", "reduction", "λ min", "λ max", "indefinite"], table),
             image(SPECTRUM_CHART, "Spectra of M A"),
