@@ -1,6 +1,7 @@
 """Checkpoints: weights + configuration + provenance + a format version, written atomically."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import torch
@@ -15,6 +16,24 @@ DEFAULT = Path(__file__).parent / "checkpoints" / "htp_default.pt"
 
 class CheckpointError(ValueError):
     """A checkpoint is missing, unreadable, corrupt, of an unknown version or mismatched."""
+
+
+_LOADED = {}        # (path, mtime, size, *extra) -> loaded object
+
+
+def cached(path, default: Path, load, *extra):
+    """``load(path)`` once per process until the file changes (``extra``: more of the key); shared by callers."""
+    path = Path(path).expanduser().resolve() if path else default
+    try:
+        st = os.stat(path)
+    except OSError:
+        raise CheckpointError(f"checkpoint {path} does not exist or cannot be read") from None
+    key = (str(path), st.st_mtime_ns, st.st_size, *extra)
+    if key not in _LOADED:
+        if len(_LOADED) >= 8:
+            _LOADED.pop(next(iter(_LOADED)))
+        _LOADED[key] = load(path)
+    return _LOADED[key]
 
 
 def atomic_save(obj, path) -> Path:

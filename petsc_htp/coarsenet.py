@@ -277,6 +277,11 @@ def read(path=None) -> dict:
     return checkpoint.read(path, FORMAT, VERSION, DEFAULT, "petsc_htp coarse-network checkpoint")
 
 
+def cached(path=None) -> tuple[CoarseNet, dict]:
+    """:func:`load` once per process until the file changes; the network is shared (eval mode)."""
+    return checkpoint.cached(path, DEFAULT, load)
+
+
 def load(path=None) -> tuple[CoarseNet, dict]:
     """Return (network in eval mode, provenance) from a checkpoint."""
     obj = read(path)

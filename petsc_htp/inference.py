@@ -14,10 +14,8 @@ factors; on every change of values)::
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -217,9 +215,6 @@ def _tridiagonal_eig(alpha, beta):
     return np.linalg.eigh(np.diag(alpha) + np.diag(beta, 1) + np.diag(beta, -1))
 
 
-_CACHE = {}          # (checkpoint path, mtime, size, device) -> HTP
-
-
 class HTP:
     """A loaded HTP network ready to build preconditioners for any N."""
 
@@ -239,17 +234,8 @@ class HTP:
     @classmethod
     def cached(cls, path=None, device="auto") -> "HTP":
         """Load ``path`` on ``device`` once per process (until the file changes); shared by callers."""
-        path = Path(path).expanduser().resolve() if path else checkpoint.DEFAULT
-        try:
-            st = os.stat(path)
-        except OSError:
-            raise checkpoint.CheckpointError(f"checkpoint {path} does not exist or cannot be read") from None
-        key = (str(path), st.st_mtime_ns, st.st_size, str(resolve_device(device)))
-        if key not in _CACHE:
-            if len(_CACHE) >= 8:
-                _CACHE.pop(next(iter(_CACHE)))
-            _CACHE[key] = cls.load(path, device=key[3])
-        return _CACHE[key]
+        device = str(resolve_device(device))
+        return checkpoint.cached(path, checkpoint.DEFAULT, lambda p: cls.load(p, device=device), device)
 
     def analyse(self, A, coords=None, ordering="auto") -> Analysis:
         """The per-pattern step: ordering, partition and structural features of ``A``.

@@ -162,7 +162,7 @@ class HTPPC:
 
     def _check(self, pc, opts):
         """The setup's own checks; switch to Jacobi when asked to."""
-        reason = self.fallback_reason = self.setup.check(opts.probe)
+        reason = self.fallback_reason = self.setup.check(opts.probes)
         self.fallback_active = bool(reason) and opts.fallback == "jacobi"
         name = pc.getOptionsPrefix() or ""
         who = f"HTPPC{' (' + name + ')' if name else ''}"
@@ -210,7 +210,8 @@ class HTPPC:
             out.append(f"  setups: {self.analysis_count} analyses (pattern), {self.numeric_count} numeric (values); "
                        f"torch threads: {torch.get_num_threads()}"
                        + (f" ({self.threads_note})" if self.threads_note else ""))
-            probe = f"{opts.probe} Rayleigh probes" if opts.probe else "no Rayleigh probe"
+            k = opts.probes
+            probe = f"{k} Rayleigh probe{'s' if k > 1 else ''}" if k else "no Rayleigh probe"
             if self.fallback_active:
                 out.append(f"  fallback: jacobi ACTIVE ({self.fallback_reason}); applying D^-1")
             elif self.fallback_reason:

@@ -28,7 +28,8 @@ HELP = {
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
     "fallback": "none or jacobi: apply D^-1 when M is non-finite or found indefinite at setup",
-    "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check)",
+    "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check; -1: 4 for paper, 1 for twolevel, "
+             "SPD by construction)",
 }
 
 
@@ -48,7 +49,7 @@ class HTPOptions:
     spd_guard: bool = True
     threads: int = 1
     fallback: str = "none"
-    probe: int = 4
+    probe: int = -1
 
     @classmethod
     def from_petsc(cls, prefix: str) -> "HTPOptions":
@@ -70,13 +71,18 @@ class HTPOptions:
             raise ValueError(f"{opt}device {self.device!r} unknown; use cpu, cuda or auto")
         if not math.isfinite(self.shift) or self.shift < 0:
             raise ValueError(f"{opt}shift must be a finite non-negative number, got {self.shift}")
-        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("probe", 0)):
+        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("probe", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
         if self.variant == "paper" and self.ordering == "metis":
             raise ValueError(f"{opt}ordering metis needs {opt}variant twolevel (the paper's leaves are "
                              "contiguous blocks of one ordering)")
         return self
+
+    @property
+    def probes(self) -> int:
+        """Rayleigh probes at setup: ``probe``, or the variant's default for -1."""
+        return self.probe if self.probe >= 0 else {"paper": 4, "twolevel": 1}[self.variant]
 
     def pattern_key(self) -> tuple:
         """The options a new analysis depends on."""

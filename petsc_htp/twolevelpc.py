@@ -10,7 +10,8 @@
   matrix (its block with every off-leaf coupling, to other leaves and other ranks, folded into the
   diagonal, so a leaf sees the same matrix whatever the number of ranks): the coarse space is global.
   'eig' vectors come from :mod:`petsc_htp.leafmodes` (one sparse factor for all leaves);
-- W^T A W: W^T (A W) by ``MatTransposeMatMult`` (A W and the explicit transposes serve the apply), solved by a redundant Cholesky on every rank. When A has the constant
+- W^T A W: W^T (A W) by ``MatTransposeMatMult`` (A W and the explicit transposes serve the apply),
+  solved by a redundant Cholesky on every rank. When A has the constant
   null space, every leaf's first column is its exact constant and one leaf's is left out, so W
   spans A's range part of the same space and W^T A W is nonsingular.
 
@@ -31,6 +32,11 @@ from . import leafmodes, twolevel
 from .checks import rayleigh_reason
 from .coarsenet import learned_basis
 from .leaves import Leaves, choose_leaves
+
+
+COARSE_TEXT = {"const": "each leaf's constant",
+               "eig": "one inverse-iteration step of each leaf's Neumann matrix from r smooth seeds",
+               "learned": "the coarse network's r vectors per leaf, refined by the same step as eig"}
 
 
 def _has_constant_null(mat) -> bool:
@@ -259,7 +265,7 @@ class Composed:
         return [f"leaves: {lv.kind}, {a.n_leaves_total} in all ({lv.n_leaves} on this rank), sizes "
                 f"{lv.sizes.min()}-{lv.max_size}; exact solves by one Cholesky factor of blockdiag(A_kk) per rank "
                 f"(PCBJACOBI, {a.ordering} ordering)",
-                f"coarse: {self.coarse}, r={self.rank}, global size {self.E.getSize()[0]}"
+                f"coarse: {self.coarse} ({COARSE_TEXT[self.coarse]}), r={self.rank}, global size {self.E.getSize()[0]}"
                 + ("; A's constant null space left out of W" if self.null else ""),
                 f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
                 f"coarse space {t['coarse_space']:.1f}, coarse operator {t['coarse_operator']:.1f}, "
@@ -269,6 +275,6 @@ class Composed:
 
     def destroy(self):
         """Free the PETSc objects."""
-        for obj in (self.W, self.Wt, self.AW, self.AWt, self.E, self.coarse_ksp, self.B, self.D, self.c1, self.c2, self.c3,
-                    self.u, self.v):
+        for obj in (self.W, self.Wt, self.AW, self.AWt, self.E, self.coarse_ksp, self.B, self.D,
+                    self.c1, self.c2, self.c3, self.u, self.v):
             obj.destroy()

@@ -61,7 +61,7 @@ class TwoLevel:
         self.device = resolve_device("cpu" if opts.device == "auto" else opts.device)
         self.net = None
         if opts.coarse == "learned":
-            self.net, prov = coarsenet.load(opts.coarse_checkpoint or None)
+            self.net, prov = coarsenet.cached(opts.coarse_checkpoint or None)
             self.model = (f"coarse network {self.net.n_parameters()} parameters, r={self.net.cfg.rank}; "
                           f"checkpoint {opts.coarse_checkpoint or 'shipped ' + str(coarsenet.DEFAULT)}")
 

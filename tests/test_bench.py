@@ -349,7 +349,8 @@ def test_trained_model_studies(env, tmp_path):
     cli.finish(out)
 
     gen = rows["generalization"]
-    assert len(gen) == 4 * (3 + len(generalization.VARIANTS)) and {r["train"] for r in gen} == {None, "full", "no_closed"}
+    assert len(gen) == 4 * (3 + len(generalization.VARIANTS))
+    assert {r["train"] for r in gen} == {None, "full", "no_closed"}
     assert all(r["ok"] for r in gen if r["method"] == "cg_jacobi" or r.get("variant"))
     assert {r["variant"] for r in gen if r.get("variant")} == set(generalization.VARIANTS)
     assert {r["config"]: r["params"] for r in rows["size"]} == {

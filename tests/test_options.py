@@ -80,7 +80,7 @@ def test_compare_table_and_plot(tiny_ckpt, tmp_path):
 def test_help_lists_htp_options_with_defaults(tiny_ckpt):
     code, out = run_example("-n", 256, "-help", "-htp_checkpoint", tiny_ckpt, "-htp_probe", 2)
     assert code == 0, out
-    assert re.search(r"-htp_probe <int> <now 2 : formerly 4>: random Rayleigh", out), out[-3000:]
+    assert re.search(r"-htp_probe <int> <now 2 : formerly -1>: random Rayleigh", out), out[-3000:]
     for name, default in (("checkpoint", str(checkpoint.DEFAULT)), ("device", "auto"), ("ordering", "auto"),
                           ("shift", "0.0"), ("threads", "1"), ("fallback", "none")):
         assert re.search(rf"-htp_{name} <\w+> <now .* : formerly {re.escape(default)}>: \S", out), (name, out[-3000:])

@@ -68,7 +68,8 @@ class Rank(Study):
             cs = [by.get((m, n)) for n in scales]
             table.append(["eig" if m.startswith("eig") else "learned", _rank(m)]
                          + [pm(c["iterations"], its) if c else "—" for c in cs]
-                         + [f"{ms(c['setup_ms']['median'])} + {ms(c['solve_ms']['median'])}" if c else "—" for c in cs]
+                         + [f"{ms(c['setup_ms']['median'])} + {ms(c['solve_ms']['median'])}" if c else "—"
+                            for c in cs]
                          + [f"{c['bytes_per_unknown']['median']:.0f}" if c and not math.isnan(
                              c["bytes_per_unknown"]["median"]) else "—" for c in cs])
         learned = {n: by[(LEARNED, n)]["iterations"]["mean"] for n in scales if (LEARNED, n) in by}
