@@ -120,7 +120,7 @@ class Generalization(Study):
     """Trains one model per training distribution; CG + HTP on every eval distribution."""
 
     name = "generalization"
-    help = "paper Table 6 + grid: trains 4 models (--train-budget-minutes each)"
+    help = "paper Table 6 + grid: trains 4 models (--train-budget-minutes each; 0: only the untrained rows)"
     sizes = (Size("gen_n", 4096, 256, "N of the generalization study"),
              Size("gen_frames", 20, 2, "frames per generalization eval set")) + TRAINING
     readme_links = ((CHART, "generalization"),)
@@ -129,10 +129,11 @@ class Generalization(Study):
         return {"generalization": {"n": settings["gen_n"], "frames": settings["gen_frames"]}}
 
     def expected_solves(self, ctx):
-        return len(EVAL_SETS) * (1 + len(VARIANTS) + len(TRAIN_SETS)) * ctx.settings["gen_frames"]
+        trained = len(TRAIN_SETS) if ctx.settings["train_minutes"] > 0 else 0
+        return len(EVAL_SETS) * (1 + len(VARIANTS) + trained) * ctx.settings["gen_frames"]
 
     def measure(self, ctx, tick):
-        models = train_models(ctx.out, ctx.config, ctx.budget)
+        models = train_models(ctx.out, ctx.config, ctx.budget) if ctx.settings["train_minutes"] > 0 else {}
         return run(models, ctx.settings["gen_n"], ctx.settings["gen_frames"], ctx.extra, tick)
 
     def section(self, res):
@@ -159,27 +160,29 @@ class Generalization(Study):
                 row.append("—" if not c else f"{pm(c['iterations'], its)} · Δ {delta:.2f} · "
                                               f"{ratio(_speedup(by, jac, tr, ev))}")
             grid.append(row)
-        return "\n\n".join([
-            "## 5. Generalization (paper Table 6)",
-            f"N = {n_label(g.get('n', 0))}, {g.get('frames', '?')} frames per eval set, CG + HTP with one model "
-            f"per training distribution ({_config_label(rows)}, cosine loss). Training budget: "
-            f"{res.meta.get('budget', {}).get('text', '?')}. Speedup = Jacobi mean total ms / HTP mean total "
-            "ms on the same frames.",
+        variants = [
+            "Two-level variants on the same frames (nothing trained per distribution; `learned` is the shipped "
+            "coarse network, trained on Full): mean ± std iterations · Δ_OOD against the variant's own Full "
+            "column · speedup against Jacobi:",
+            md_table(["Variant"] + [names[e] for e in evals], _variant_grid(res, evals, jac))]
+        head = [f"## 5. Generalization (paper Table 6)\n\nN = {n_label(g.get('n', 0))}, {g.get('frames', '?')} "
+                "frames per eval set; speedup = Jacobi mean total ms / mean total ms on the same frames."]
+        if not any(tr for tr, _ in by):
+            return "\n\n".join(head + ["No HTP models trained in this run (`--train-budget-minutes 0`)."] + variants)
+        return "\n\n".join(head + [
+            f"CG + HTP with one model per training distribution ({_config_label(rows)}, cosine loss). Training "
+            f"budget: {res.meta.get('budget', {}).get('text', '?')}.",
             "Each eval set against the model trained on its complement (the paper's held-out protocol):",
             md_table(["Eval distribution", "Jacobi ms", "Jacobi its", "HTP trained on", "HTP its",
                       "HTP ms", "speedup"], t6),
             "Full grid (supplement Table 8): mean ± std iterations · Δ_OOD (iterations / the same model's "
             "Full column) · speedup against Jacobi:",
             md_table(["Train \\ eval"] + [names[e] for e in evals], grid),
-            image(CHART, "Generalization grid"),
-            "Two-level variants on the same frames (nothing trained per distribution; `learned` is the shipped "
-            "coarse network, trained on Full): mean ± std iterations · Δ_OOD against the variant's own Full "
-            "column · speedup against Jacobi:",
-            md_table(["Variant"] + [names[e] for e in evals], _variant_grid(res, evals, jac)),
-        ])
+            image(CHART, "Generalization grid")] + variants)
 
     def charts(self, res, out):
-        return [chart(res, out)]
+        trained = any(r.get("train") for r in res.rows["generalization"])
+        return [chart(res, out)] if trained else []
 
 
 STUDY = Generalization()
