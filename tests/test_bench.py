@@ -496,3 +496,16 @@ def test_budget_marks_slow_frames_failed():
     over_budget(rows, 41.7)
     assert [(r["ok"], r["failure"]) for r in rows] == [(False, "BUDGET"), (True, None), (False, "DIVERGED_ITS")]
     assert boundary(rows, ["slow", "fast"], ["a", "b"]) == {"slow": "a", "fast": "b"}
+
+
+def test_methods_take_turns_frame_by_frame(env):
+    """run_methods solves each frame with every method before the next frame (drift hits all alike)."""
+    from petsc_htp.bench.cases import table_problems
+    from petsc_htp.bench.methods import resolve_methods
+    from petsc_htp.bench.runner import run_methods
+
+    methods = resolve_methods(["cg_jacobi", "cg_icc"])
+    rows = run_methods(methods, table_problems([256], 2), warmup=False)
+    assert [(r["method"], r["seed"]) for r in rows] == [(m, s) for s in sorted({r["seed"] for r in rows})
+                                                        for m in ("cg_jacobi", "cg_icc")]
+    assert all(r["ok"] for r in rows)

@@ -167,3 +167,54 @@ def test_min_rayleigh_positive_on_every_stability_case():
                 petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
             reason, _, _, ksp = solve(mat, frame.b, htp_coarse=coarse, ksp_max_it=1)
             assert ksp.getPC().getPythonContext().setup.check(8) == "", (prob.case, coarse)
+
+
+def test_sparse_leaf_modes_span_the_torch_eig_basis(frames):
+    """leafmodes (one sparse PETSc factor) and twolevel's dense batched 'eig' compute the same span."""
+    from petsc_htp import leafmodes, twolevel
+
+    A = sp.csr_matrix(frames[0].A)
+    lv = choose_leaves(A, frames[0].coords)
+    an = analyse(A, lv)
+    dense = twolevel.coarse_space(an, A, "eig", 4).numpy()
+    leaf_of = np.empty(A.shape[0], dtype=np.int64)
+    leaf_of[lv.perm] = np.repeat(np.arange(lv.n_leaves), lv.sizes)
+    C = A.tocoo()
+    keep = leaf_of[C.row] == leaf_of[C.col]
+    inside = sp.csr_matrix((C.data[keep], (C.row[keep], C.col[keep])), shape=A.shape)
+    S = leafmodes.neumann_matrix(inside, np.asarray(A.sum(axis=1)).ravel(), leaf_of)
+    pos = np.empty(A.shape[0], dtype=np.int64)
+    pos[lv.perm] = an.pos.numpy()
+    sparse = leafmodes.modes(S, pos, an.mask, 4).numpy()
+    for k in range(lv.n_leaves):
+        n_k = lv.sizes[k]
+        assert np.allclose(sparse[k, :n_k].T @ sparse[k, :n_k], np.eye(4), atol=1e-10)
+        assert np.abs(sparse[k, n_k:]).max(initial=0.0) == 0.0
+        assert np.linalg.svd(dense[k, :n_k].T @ sparse[k, :n_k], compute_uv=False).min() > 1 - 1e-8
+
+
+def test_inner_solver_defaults_are_scoped_and_overridable(frames):
+    """The leaf and coarse solvers' defaults are set only during setup; the user's options win."""
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    _, its, relres, ksp = solve(mat, frame.b)
+    inner = ("htp_leaf_", "htp_cs_")
+    assert not [k for k in PETSc.Options().getAll() if k.startswith(ksp.getOptionsPrefix() + inner[0])
+                or k.startswith(ksp.getOptionsPrefix() + inner[1])]
+    sub = ksp.getPC().getPythonContext().setup.B.getBJacobiSubKSP()[0].getPC()
+    assert sub.getType() == "cholesky" and relres <= 1.01e-8
+    prefix = ksp.getOptionsPrefix()
+    _, its_lu, relres_lu, ksp = solve(mat, frame.b, htp_leaf_sub_pc_type="lu")
+    assert ksp.getPC().getPythonContext().setup.B.getBJacobiSubKSP()[0].getPC().getType() == "lu"
+    assert abs(its_lu - its) <= 1 and relres_lu <= 1.01e-8 and prefix != ksp.getOptionsPrefix()
+
+
+def test_twolevel_probes_once_by_default(frames, tmp_path):
+    frame = frames[0]
+    _, _, _, ksp = solve(petsc_mat(frame.A), frame.b)
+    opts = ksp.getPC().getPythonContext().opts
+    assert opts.probe == -1 and opts.probes == 1
+    viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
+    ksp.view(viewer)
+    viewer.destroy()
+    assert "checks passed (finite, 1 Rayleigh probe)" in (tmp_path / "view.txt").read_text()
