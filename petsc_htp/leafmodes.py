@@ -14,18 +14,25 @@ import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
 
-from .twolevel import EIG_OVERSAMPLE, EIG_SHIFT, EIG_STEPS, _eigh_modes, _seeds
+from .twolevel import EIG_OVERSAMPLE, EIG_STEPS, _eigh_modes, _seeds
+
+# Shift of the Neumann matrices, times each leaf's mean |diagonal|. Larger than twolevel's EIG_SHIFT:
+# a leaf with several components (a sealed region's edge) gets each component's constant from the
+# step, to 1e-4 here; twolevel deflates such near-null coarse directions itself, PETSc's coarse
+# Cholesky does not, and with them accurate to 1e-8 W^T A W has eigenvalues at rounding level
+# (some negative: an indefinite M on the stability map's 'regions' frames).
+SHIFT = 1e-4
 
 
 def neumann_matrix(inside: sp.csr_matrix, rowsum: np.ndarray, leaf_of: np.ndarray) -> sp.csr_matrix:
     """S: the leaf blocks ``inside`` with each row's off-leaf couplings on the diagonal, shifted.
 
     ``rowsum`` holds A's full row sums, so the off-leaf part of row i is
-    ``rowsum[i] - inside[i].sum()``; the shift is EIG_SHIFT times the leaf's mean |diagonal|.
+    ``rowsum[i] - inside[i].sum()``; the shift is SHIFT times the leaf's mean |diagonal|.
     """
     off = rowsum - np.asarray(inside.sum(axis=1)).ravel()
     mean = np.bincount(leaf_of, np.abs(inside.diagonal() + off)) / np.bincount(leaf_of)
-    return (inside + sp.diags(off + EIG_SHIFT * mean[leaf_of])).tocsr()
+    return (inside + sp.diags(off + SHIFT * mean[leaf_of])).tocsr()
 
 
 def _factor(S: sp.csr_matrix, ordering: str) -> PETSc.PC:

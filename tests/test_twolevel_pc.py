@@ -156,12 +156,13 @@ def test_min_rayleigh_positive_on_every_stability_case():
     """M is SPD by construction: positive Rayleigh quotients on every stress case, in PETSc and in torch."""
     from petsc_htp.petscmat import frame_mat
 
-    for prob in stability_problems(1024, 1, 4096, 1000, 8192):
+    for prob in stability_problems(4096, 1, 4096, 1000, 8192):
         frame = prob.frame
         coords = frame.coords if prob.attach else None
-        for coarse, rank in (("eig", 4), ("const", 1)):
-            M = factor(analyse(frame.A, choose_leaves(frame.A, coords)), frame.A, coarse, rank)
-            assert min_rayleigh(M.apply, frame.n, probes=8) > 0, (prob.case, coarse)
+        for coarse, rank in (("eig", 4), ("const", 1), ("learned", 4)):
+            if coarse != "learned":
+                M = factor(analyse(frame.A, choose_leaves(frame.A, coords)), frame.A, coarse, rank)
+                assert min_rayleigh(M.apply, frame.n, probes=8) > 0, (prob.case, coarse)
             mat = frame_mat(frame, PETSc.COMM_SELF)
             if prob.attach:
                 petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
@@ -169,10 +170,11 @@ def test_min_rayleigh_positive_on_every_stability_case():
             assert ksp.getPC().getPythonContext().setup.check(8) == "", (prob.case, coarse)
 
 
-def test_sparse_leaf_modes_span_the_torch_eig_basis(frames):
-    """leafmodes (one sparse PETSc factor) and twolevel's dense batched 'eig' compute the same span."""
+def test_sparse_leaf_modes_span_the_torch_eig_basis(frames, monkeypatch):
+    """leafmodes (one sparse PETSc factor) and twolevel's dense batched 'eig' compute the same span (same shift)."""
     from petsc_htp import leafmodes, twolevel
 
+    monkeypatch.setattr(leafmodes, "SHIFT", twolevel.EIG_SHIFT)
     A = sp.csr_matrix(frames[0].A)
     lv = choose_leaves(A, frames[0].coords)
     an = analyse(A, lv)
