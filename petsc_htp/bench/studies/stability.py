@@ -39,6 +39,7 @@ STRESS = (
     ("rtol 1e-12", "tolerance 1e-12 (near double-precision limit)"),
     ("rtol 1e-14", "tolerance 1e-14 (at the double-precision limit)"),
     ("natural order", "row-major ordering, no coordinates or density attached"),
+    ("permuted bare", "random symmetric row permutation, no coordinates or density attached"),
     ("buoyancy rhs", "rhs -d(rho)/dy, supported on density interfaces only"),
     ("inconsistent rhs", "b + 0.1 rms(b): not mean-zero, outside the range of the singular A"),
     ("simulation", "frames of the two-phase flow run (density ratio 1000, x0 = 0, fresh KSP)"),
@@ -47,12 +48,21 @@ STRESS = (
 
 def natural_order(frame) -> Frame:
     """The frame permuted from Morton to row-major order (the grid's natural numbering)."""
-    order = np.argsort(frame.perm, kind="stable")
+    return _reordered(frame, np.argsort(frame.perm, kind="stable"), "natural")
+
+
+def permuted(frame, seed=0) -> Frame:
+    """The frame under a random symmetric permutation (seeded)."""
+    return _reordered(frame, np.random.default_rng(seed).permutation(frame.n), "random")
+
+
+def _reordered(frame, order, name) -> Frame:
+    """The frame with its rows and columns taken in ``order``."""
     A = frame.A[order][:, order].tocsr()
     A.sort_indices()
     return dataclasses.replace(frame, A=A, b=frame.b[order], rho=frame.rho[order],
                                coords=frame.coords[order], perm=frame.perm[order],
-                               params={**frame.params, "ordering": "natural"})
+                               params={**frame.params, "ordering": name})
 
 
 def inconsistent(frame, offset=0.1) -> Frame:
@@ -112,6 +122,7 @@ def problems(n, frames, large_n, odd_n, huge_n) -> list:
         "rtol 1e-12": [Problem(f, rtol=1e-12) for f in base],
         "rtol 1e-14": [Problem(f, rtol=1e-14) for f in base],
         "natural order": [Problem(natural_order(f), attach=False) for f in base],
+        "permuted bare": [Problem(permuted(f, k), attach=False) for k, f in enumerate(base)],
         "buoyancy rhs": [Problem(make_frame(n, s, "full", rhs="buoyancy")) for s in held_out_seeds(frames)],
         "inconsistent rhs": [Problem(inconsistent(f)) for f in base],
         "simulation": [Problem(f) for f in flow_frames(n, frames)],
@@ -197,7 +208,7 @@ class Stability(Study):
 
     name = "stability"
     help = ("methods x stress cases (contrast up to 1e8, closed barriers, disconnected regions, large/huge/odd N, "
-            "tight rtol, natural ordering, buoyancy and inconsistent rhs, simulation frames) within a frame budget")
+            "tight rtol, natural and random orderings, buoyancy and inconsistent rhs, simulation frames) within a frame budget")
     default = True
     sizes = (Size("stress_n", 4096, 256, "N of the stress cases"),
              Size("stress_frames", 3, 1, "frames per stress case"),
