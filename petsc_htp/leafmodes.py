@@ -63,7 +63,10 @@ def _solve(factor: PETSc.Mat, X: np.ndarray) -> np.ndarray:
 
 def modes(S: sp.csr_matrix, pos: np.ndarray, mask: torch.Tensor, r: int, ordering: str = "natural",
           seeds: torch.Tensor | None = None) -> torch.Tensor:
-    """The r lowest eigenvectors of each leaf block of S, (K, Lmax, r) float64, zero on the padding.
+    """Approximate r lowest eigenvectors of each leaf block of S, (K, Lmax, r) float64, zero on the padding.
+
+    EIG_STEPS block inverse-iteration steps from the seeds, per-leaf QR, then Rayleigh-Ritz
+    with S; leaves with at most q rows get a dense eigh instead.
 
     Parameters
     ----------

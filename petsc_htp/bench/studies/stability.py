@@ -208,7 +208,8 @@ class Stability(Study):
 
     name = "stability"
     help = ("methods x stress cases (contrast up to 1e8, closed barriers, disconnected regions, large/huge/odd N, "
-            "tight rtol, natural and random orderings, buoyancy and inconsistent rhs, simulation frames) within a frame budget")
+            "tight rtol, natural and random orderings, buoyancy and inconsistent rhs, simulation frames) "
+            "within a frame budget")
     default = True
     sizes = (Size("stress_n", 4096, 256, "N of the stress cases"),
              Size("stress_frames", 3, 1, "frames per stress case"),
