@@ -4,7 +4,8 @@ For every leaf of a :class:`~petsc_htp.twolevel.TwoLevelAnalysis` the network re
 operator (and, when given, coordinates and density) and returns r vectors: the leaf
 constant plus r - 1 learned vectors, smoothed by a few damped-Jacobi steps with the leaf's
 Neumann matrix. Features are ratios of A's entries, so the basis is invariant to A -> c A.
-Use it with ``twolevel.factor(analysis, A, coarse="given", basis=learned_basis(...))``.
+Use it with ``twolevel.factor(analysis, A, coarse="seeded", basis=learned_basis(...))`` (as
+HTPPC does: the vectors refined by one inverse-iteration step) or ``coarse="given"`` (raw, as trained).
 """
 from __future__ import annotations
 

@@ -24,7 +24,7 @@ from .checks import probe_reason
 from .leaves import Leaves
 from .ordering import _check_square
 
-COARSE_KINDS = ("const", "eig", "given")
+COARSE_KINDS = ("const", "eig", "given", "seeded")
 NULL_TOL = 1e-10            # |A 1_c| <= NULL_TOL * max diag: component c is singular
 SPAN_TOL = 1e-8             # |z - P P^T z|^2 / |z|^2 below this: z in null(A) lies in P's span
 PIVOT_TOL = 1e-14           # Cholesky pivot below this times the largest diagonal: singular
@@ -305,9 +305,10 @@ def _seeds(mask, q):
     return torch.cos(angle) * mask[:, :, None]
 
 
-def _subspace_modes(S, mask, r, chol):
-    """Approximate r lowest eigenvectors: block inverse iteration with S, then Rayleigh-Ritz."""
-    X = _seeds(mask, r + EIG_OVERSAMPLE)
+def _subspace_modes(S, mask, r, chol, seeds=None):
+    """Approximate r lowest eigenvectors: block inverse iteration with S from ``seeds``
+    (default: the smoothest cosines), then Rayleigh-Ritz."""
+    X = _seeds(mask, r + EIG_OVERSAMPLE) if seeds is None else seeds
     for _ in range(EIG_STEPS):
         Y = torch.linalg.solve_triangular(chol, X, upper=False)         # batched cholesky_solve is
         Y = torch.linalg.solve_triangular(chol.mT, Y, upper=True)       # several times slower on CPU
@@ -316,7 +317,7 @@ def _subspace_modes(S, mask, r, chol):
     return X @ ritz
 
 
-def _eig_basis(analysis, blocks, data, r):
+def _eig_basis(analysis, blocks, data, r, seeds=None):
     """Coarse basis of r low eigenvectors of each leaf's local Neumann matrix.
 
     Subspace iteration where the shifted Neumann matrix has a Cholesky factor and the leaf
@@ -329,7 +330,7 @@ def _eig_basis(analysis, blocks, data, r):
     P = torch.zeros(*mask.shape, r, dtype=DTYPE, device=mask.device)
     if not bad.all():
         chol[bad] = torch.eye(chol.shape[-1], dtype=DTYPE, device=chol.device)
-        P = _subspace_modes(S, mask, r, chol)
+        P = _subspace_modes(S, mask, r, chol, seeds)
     if bad.any():
         P[bad] = _eigh_modes(S[bad], mask[bad], r)
     return P
@@ -361,6 +362,9 @@ def _coarse_basis(analysis, blocks, data, coarse, rank, basis):
         return (analysis.mask / analysis.mask.sum(1, keepdim=True).sqrt())[:, :, None]
     if coarse == "eig":
         return _eig_basis(analysis, blocks, data, rank)
+    if coarse == "seeded":
+        seeds = _given_basis(analysis, basis)
+        return _eig_basis(analysis, blocks, data, seeds.shape[2], seeds)
     return _given_basis(analysis, basis)
 
 
@@ -431,7 +435,7 @@ class TwoLevel:
     n, rank, coarse_size : int
         N, vectors per leaf r and K * r.
     coarse : str
-        'const', 'eig' or 'given'.
+        'const', 'eig', 'given' or 'seeded'.
     coarse_note, leaf_note : str
         What the coarse and leaf factorisations had to fix ('exact' / '' when nothing).
     times : dict
@@ -561,19 +565,21 @@ def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> T
         From :func:`analyse` on a matrix with A's pattern and entry order.
     A : scipy.sparse matrix
         The values to factor.
-    coarse : {'const', 'eig', 'given'}
-        Constant per leaf (r = 1), ``rank`` low local Neumann eigenvectors per leaf, or ``basis``.
+    coarse : {'const', 'eig', 'given', 'seeded'}
+        Constant per leaf (r = 1); ``rank`` approximate low local Neumann eigenvectors per leaf (one
+        inverse-iteration step from smooth seeds); ``basis`` as given; or the same step from ``basis``
+        ('seeded': HTPPC's learned coarse space).
     rank : int
         Vectors per leaf for 'eig' (ignored otherwise).
     basis : array_like or Tensor, shape (K, Lmax, r), optional
-        The coarse vectors for 'given', in padded leaf layout, zero on the padding.
+        The coarse vectors for 'given' and 'seeded', in padded leaf layout, zero on the padding.
     """
     if coarse not in COARSE_KINDS:
         raise ValueError(f"unknown coarse kind {coarse!r}; expected one of {', '.join(COARSE_KINDS)}")
     if coarse == "eig" and (isinstance(rank, bool) or not isinstance(rank, numbers.Integral) or rank < 1):
         raise ValueError(f"rank must be a positive integer, got {rank!r}")
-    if (coarse == "given") != (basis is not None):
-        raise ValueError("a basis is needed for coarse='given' and only for it")
+    if (coarse in ("given", "seeded")) != (basis is not None):
+        raise ValueError("a basis is needed for coarse='given' or 'seeded' and only for them")
     device = analysis.device
     times = {}
     t0 = time.perf_counter()

@@ -220,3 +220,18 @@ def test_twolevel_probes_once_by_default(frames, tmp_path):
     ksp.view(viewer)
     viewer.destroy()
     assert "checks passed (finite, 1 Rayleigh probe)" in (tmp_path / "view.txt").read_text()
+
+
+def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
+    """HTPPC's learned space and twolevel's 'seeded' one refine the same network vectors the same way."""
+    from petsc_htp import coarsenet
+    from petsc_htp.pcg import pcg
+
+    frame = frames[1]
+    mat = petsc_mat(frame.A)
+    petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
+    reason, its, relres, _ = solve(mat, frame.b, htp_coarse="learned")
+    an = analyse(frame.A, choose_leaves(frame.A, frame.coords))
+    basis = coarsenet.learned_basis(coarsenet.cached()[0], an, frame.A, frame.coords, frame.rho)
+    torch_its = pcg(frame.A, frame.b, factor(an, frame.A, "seeded", basis=basis).apply, 1e-8).iterations
+    assert reason > 0 and relres <= 1.01e-8 and abs(its - torch_its) <= 2, (its, torch_its)

@@ -9,7 +9,7 @@ import torch
 
 from .timing import _capture, _device, _sync, _timed
 
-METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig")
+METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig", "twolevel_learned")
 
 
 def _constant_null(A) -> bool:
@@ -169,7 +169,13 @@ class TwoLevelPreconditioner(Preconditioner):
     def _setup(self):
         from ..twolevel import factor
 
-        new = factor(self.analysis, self.A, self.coarse, self.rank)
+        if self.coarse == "learned":                   # the network's vectors, refined as in HTPPC
+            from ..coarsenet import cached, learned_basis
+
+            basis = learned_basis(cached()[0], self.analysis, self.A, self.coords, self.density)
+            new = factor(self.analysis, self.A, "seeded", basis=basis)
+        else:
+            new = factor(self.analysis, self.A, self.coarse, self.rank)
         if self.op is None:
             self.op = new
         else:
