@@ -402,11 +402,12 @@ def test_fastpath_study_runs_on_this_machine(env, tmp_path):
     assert main(["--quick", "--out", str(out), "--studies", "fastpath", "--scales", "256", "--frames", "1",
                  *env["common"]]) == 0
     rows = rows_of(out, "fastpath")
-    assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig"]
+    assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig",
+                                          "twolevel_learned"]
     assert all(r["n"] == 256 and r["us_per_iter"] > 0 for r in rows)
     assert all(r["ok"] for r in rows if r["method"] != "htp")
     its = {r["method"]: r["iterations"] for r in rows}
-    assert its["twolevel_eig"] < its["bjacobi"] < its["jacobi"]
+    assert its["twolevel_eig"] < its["bjacobi"] < its["jacobi"] and its["twolevel_learned"] < its["bjacobi"]
     report = (out / "report.md").read_text()
     assert "## 8. Fast path" in report and (out / "fastpath.png").stat().st_size > 2000
     if not torch.cuda.is_available():
