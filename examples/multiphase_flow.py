@@ -15,8 +15,9 @@ Options
     -density_ratio R    heavy / light density (default 1000)
     -seed S             blob jitter (default 0)
     -reuse_every K      rebuild the preconditioner every K frames (default 0: every frame)
-    -reuse_growth G     also rebuild when a frame needed more than G times the
-                        iterations of the last rebuilt frame (default 1.5)
+    -reuse_growth G     a reused preconditioner gets G times the iterations of the
+                        last rebuilt frame; a frame that needs more rebuilds on the
+                        spot and goes on from its iterate (default 1.5)
     -out DIR            output folder (default results/flow)
     -quick              a few frames at 32 x 32
     -animate            also write DIR/METHOD.gif (density and pressure)

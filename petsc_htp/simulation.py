@@ -65,11 +65,12 @@ class PressureSolver:
         self.ksp.setOperators(self.mat, self.mat)
         self.ksp.setFromOptions()
         self.ksp.setInitialGuessNonzero(True)          # the previous frame's pressure
+        self.max_it = self.ksp.getTolerances()[3]
         self.x, self.b = self.mat.createVecs()
         self.x.set(0.0)
         self.r = self.b.duplicate()
 
-    def solve(self, A, rhs, coords, coefficient, rebuild):
+    def solve(self, A, rhs, coords, coefficient, rebuild, cap=None):
         """Update the values, attach geometry and solve, reusing the PC unless ``rebuild``.
 
         ``coefficient`` is attached as HTP's per-row ``density`` feature, which
@@ -77,11 +78,17 @@ class PressureSolver:
         ``1/rho``. Attaching the physical density instead tripled HTP's iterations
         at 64 x 64 (729 against 243).
 
+        With a reused PC the solve stops after ``cap`` iterations (if given); if it has not
+        converged by then, or failed otherwise, the PC is rebuilt and the solve goes on from
+        that iterate (zero if not finite): a stale preconditioner costs at most ``cap``
+        iterations, never a failed frame.
+
         Returns
         -------
         dict
-            ``its``, ``code`` (converged reason), ``relres`` (true), ``setup_ms``
-            (KSPSetUp + PCSetUpOnBlocks), ``solve_ms``, ``update_ms``,
+            ``its`` (all of the frame's), ``code`` (converged reason), ``relres`` (true), ``setup_ms``
+            (KSPSetUp + PCSetUpOnBlocks), ``solve_ms``, ``update_ms``, ``rebuilt``, ``restarted``
+            (rebuilt after the cap), ``reused_its`` (iterations with the reused PC before a restart),
             ``pc_setups`` (PCSetUp events) and ``numeric_setups`` (python PCs, else None).
         """
         t0 = time.perf_counter()
@@ -90,22 +97,38 @@ class PressureSolver:
         attach(self.mat, coords=coords, density=coefficient)
         self.b.setArray(rhs)
         pc = self.ksp.getPC()
-        pc.setReusePreconditioner(not rebuild)
         setups, numeric = pc_setups(), numeric_count(pc)
+        update_ms = 1e3 * (time.perf_counter() - t0)
+        first = self._attempt(rebuild, self.max_it if rebuild or cap is None else min(cap, self.max_it))
+        restarted = not rebuild and first["code"] < 0
+        if restarted and not np.isfinite(self.x.norm()):
+            self.x.set(0.0)
+        res = first if not restarted else self._attempt(True, self.max_it)
+        self.mat.mult(self.x, self.r)
+        self.r.aypx(-1.0, self.b)
+        after = numeric_count(pc)
+        return {"its": res["its"] + (first["its"] if restarted else 0), "code": res["code"],
+                "relres": self.r.norm() / (self.b.norm() or 1.0),
+                "setup_ms": first["setup_ms"] + (res["setup_ms"] if restarted else 0.0),
+                "solve_ms": first["solve_ms"] + (res["solve_ms"] if restarted else 0.0),
+                "update_ms": update_ms, "rebuilt": rebuild or restarted, "restarted": restarted,
+                "reused_its": first["its"] if restarted else 0,
+                "pc_setups": pc_setups() - setups,
+                "numeric_setups": None if after is None else after - numeric}
+
+    def _attempt(self, rebuild, max_it):
+        """KSPSetUp and KSPSolve with at most ``max_it`` iterations, from the current ``x``."""
+        self.ksp.getPC().setReusePreconditioner(not rebuild)
+        self.ksp.setTolerances(max_it=max_it)
         t1 = time.perf_counter()
         self.ksp.setUp()
         self.ksp.setUpOnBlocks()
         t2 = time.perf_counter()
         self.ksp.solve(self.b, self.x)
         t3 = time.perf_counter()
-        self.mat.mult(self.x, self.r)
-        self.r.aypx(-1.0, self.b)
-        after = numeric_count(pc)
+        self.ksp.setTolerances(max_it=self.max_it)
         return {"its": self.ksp.getIterationNumber(), "code": self.ksp.getConvergedReason(),
-                "relres": self.r.norm() / (self.b.norm() or 1.0),
-                "setup_ms": 1e3 * (t2 - t1), "solve_ms": 1e3 * (t3 - t2), "update_ms": 1e3 * (t1 - t0),
-                "pc_setups": pc_setups() - setups,
-                "numeric_setups": None if after is None else after - numeric}
+                "setup_ms": 1e3 * (t2 - t1), "solve_ms": 1e3 * (t3 - t2)}
 
     def pressure(self):
         """The current solution as a numpy array."""
@@ -118,27 +141,31 @@ class PressureSolver:
 
 
 class ReusePolicy:
-    """When to rebuild the preconditioner.
+    """When to rebuild the preconditioner, and how long a reused one may run.
 
     Always at the first frame; with ``every`` = 0 at every frame; otherwise
-    ``every`` frames after the last rebuild, or as soon as a frame needed more
-    than ``growth`` times the iterations of the last rebuilt frame.
+    ``every`` frames after the last rebuild. A frame with the reused PC gets
+    :meth:`cap` = ``growth`` times the iterations of the last rebuilt frame; one
+    that needs more is rebuilt on the spot (:meth:`PressureSolver.solve`).
     """
 
     def __init__(self, every, growth):
         self.every, self.growth = every, growth
-        self.since, self.ref_its, self.last_its = None, 0, 0
+        self.since, self.ref_its = None, 0
 
     def rebuild(self):
-        """Whether the coming frame rebuilds."""
-        return (self.since is None or self.every == 0 or self.since >= self.every
-                or self.last_its > self.growth * max(self.ref_its, 1))
+        """Whether the coming frame rebuilds before its solve."""
+        return self.since is None or self.every == 0 or self.since >= self.every
 
-    def record(self, rebuilt, its):
-        """Note a solved frame."""
-        self.since = 1 if rebuilt else self.since + 1
-        self.ref_its = its if rebuilt else self.ref_its
-        self.last_its = its
+    def cap(self):
+        """Iterations a reused PC may take in the coming frame."""
+        return max(1, math.ceil(self.growth * self.ref_its))
+
+    def record(self, res):
+        """Note a solved frame (the dict of :meth:`PressureSolver.solve`)."""
+        self.since = 1 if res["rebuilt"] else self.since + 1
+        if res["rebuilt"]:
+            self.ref_its = res["its"] - res["reused_its"]
 
 
 # ------------------------------------------------------------------- runs
@@ -160,8 +187,7 @@ def simulate(cfg, label, prefix="", verbose=True):
         t1 = time.perf_counter()
         if solver is None:
             solver = PressureSolver(A, sim.regions, prefix)
-        rebuild = policy.rebuild()
-        res = solver.solve(A, rhs, coords, 1.0 / density, rebuild)
+        res = solver.solve(A, rhs, coords, 1.0 / density, policy.rebuild(), policy.cap())
         t2 = time.perf_counter()
         code = res.pop("code")
         converged = code > 0
@@ -169,7 +195,7 @@ def simulate(cfg, label, prefix="", verbose=True):
         heavy, light = sim.phase_mass()
         rec = {"frame": frame, "method": label, "n": sim.n, **res,
                "reason": reason_name(code),
-               "div_before": div_before, "div_after": div_after, "rebuilt": rebuild,
+               "div_before": div_before, "div_after": div_after,
                "physics_ms": 1e3 * (t1 - t0 + time.perf_counter() - t2), "substeps": sim.substeps,
                "mass_heavy": heavy, "mass_light": light}
         records.append(rec)
@@ -177,12 +203,13 @@ def simulate(cfg, label, prefix="", verbose=True):
             print(f"{label} frame {frame:3d}  its {rec['its']:5d}  setup {rec['setup_ms']:7.2f} ms  "
                   f"solve {rec['solve_ms']:7.2f} ms  {rec['reason']:<16} relres {rec['relres']:.2e}  "
                   f"div {math.nan if div_after is None else div_after:.2e}  "
-                  f"rebuilt {'yes' if rebuild else 'no'}", flush=True)
+                  f"rebuilt {'after the cap' if rec['restarted'] else 'yes' if rec['rebuilt'] else 'no'}",
+                  flush=True)
         if not converged:
             print(f"error: {label}: frame {frame}: KSP did not converge ({rec['reason']})",
                   file=sys.stderr, flush=True)
             break
-        policy.record(rebuild, rec["its"])
+        policy.record(rec)
         if cfg["animate"]:
             images.append((sim.density_image(), sim.pressure_image(solver.pressure())))
     solver.destroy()

@@ -15,7 +15,7 @@ from petsc_htp.morton import morton_code
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "multiphase_flow.py"
 FIELDS = {"frame", "method", "n", "its", "setup_ms", "solve_ms", "reason", "relres", "div_before",
-          "div_after", "rebuilt", "pc_setups", "numeric_setups", "physics_ms", "update_ms",
+          "div_after", "rebuilt", "restarted", "reused_its", "pc_setups", "numeric_setups", "physics_ms", "update_ms",
           "substeps", "mass_heavy", "mass_light"}
 MASS_RTOL = 1e-10      # phase masses over a run (level set with global volume correction)
 RTOL = 1e-8            # options/common.opts
@@ -90,15 +90,19 @@ def test_reuse_every_3_rebuilds_twice(tmp_path):
 
 
 @pytest.mark.slow
-def test_reuse_growth_triggers_rebuild(tmp_path):
+def test_reuse_cap_rebuilds_within_the_frame(tmp_path):
     proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", "-reuse_every", "100",
                        "-reuse_growth", "1")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     records, ref = read_records(tmp_path / "cg_jacobi.jsonl"), None
-    for prev, rec in zip(records, records[1:]):
-        ref = prev["its"] if prev["rebuilt"] else ref
-        assert rec["rebuilt"] == (prev["its"] > ref)
-    assert any(r["rebuilt"] for r in records[1:])
+    for rec in records:
+        if ref is not None and not rec["restarted"]:
+            assert rec["its"] <= ref                          # the reused PC kept within its cap
+        if rec["restarted"]:                                  # stopped at the cap, rebuilt, went on
+            assert rec["reused_its"] == ref and rec["its"] > ref and rec["pc_setups"] == 1
+        assert rec["reason"].startswith("CONVERGED")
+        ref = rec["its"] - rec["reused_its"] if rec["rebuilt"] else ref
+    assert any(r["restarted"] for r in records)
 
 
 @pytest.mark.slow
