@@ -2,7 +2,8 @@
 
 A :class:`Leaves` is a row permutation plus the offsets of contiguous groups in
 it: leaf k is the rows ``perm[offsets[k]:offsets[k + 1]]`` of the caller's matrix.
-Contiguous chunks of an ordering (Morton, RCM, the given order) or METIS parts.
+Contiguous chunks of an ordering (RCM, the given order), Morton chunks cut at quadtree
+boundaries, or METIS parts.
 """
 from __future__ import annotations
 
@@ -15,9 +16,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .morton import quantized_morton_codes
 from .ordering import _check_square, choose_ordering
 
 LAYOUTS = ("auto", "morton", "metis", "natural", "rcm")
+SLACK = 0.25        # a Morton leaf has leaf * (1 +- SLACK) rows
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,6 +108,42 @@ def contiguous_leaves(n, leaf=128, perm=None, kind="natural", build_ms=0.0) -> L
     return Leaves(perm, np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64), kind, build_ms)
 
 
+def morton_leaves(codes, leaf=128, perm=None, kind="morton", build_ms=0.0, slack=SLACK) -> Leaves:
+    """Cut a Morton order into leaves at its coarsest quadtree boundaries.
+
+    Each cut lies within ``slack * leaf`` rows of ``leaf`` rows after the previous one, where
+    consecutive codes differ in the highest bit (nearest the target among ties). On a full
+    power-of-two grid these are the ``leaf``-cell quadtree blocks, as plain chunks would be;
+    with holes (an obstacle) plain chunks straddle two blocks and often fall apart, cut leaves do not.
+
+    Parameters
+    ----------
+    codes : array_like of int, shape (N,)
+        Morton codes of the rows in the order ``perm`` (non-decreasing).
+    leaf : int
+        Target leaf size.
+    perm, kind, build_ms
+        As in :func:`contiguous_leaves`.
+    slack : float
+        Largest relative deviation of a leaf's size from ``leaf``.
+    """
+    codes = np.asarray(codes, dtype=np.int64)
+    n, leaf = _positive_int(codes.size, "n"), _positive_int(leaf, "leaf")
+    if np.any(np.diff(codes) < 0):
+        raise ValueError("morton_leaves: codes must be non-decreasing (rows in Morton order)")
+    level = np.zeros(n, dtype=np.int64)
+    level[1:] = np.frexp((codes[1:] ^ codes[:-1]).astype(np.float64))[1]      # highest differing bit + 1
+    width = int(slack * leaf)
+    cuts = [0]
+    while n - cuts[-1] > leaf + width:
+        target = cuts[-1] + leaf
+        lo, hi = target - width, min(target + width, n - 1)
+        best = np.flatnonzero(level[lo:hi + 1] == level[lo:hi + 1].max()) + lo
+        cuts.append(int(best[np.argmin(np.abs(best - target))]))
+    perm = np.arange(n, dtype=np.int64) if perm is None else perm
+    return Leaves(perm, np.array(cuts + [n], dtype=np.int64), kind, build_ms)
+
+
 def _metis_graph(A):
     """xadj, adjncy of the symmetric graph of ``A`` without self loops."""
     C = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
@@ -160,8 +199,8 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     coords : array_like, shape (N, 2), optional
         Row coordinates (needed for 'morton').
     layout : {'auto', 'morton', 'metis', 'natural', 'rcm'}
-        'auto': Morton chunks when ``coords`` are given (keeping an order that
-        already is Morton), else METIS parts.
+        'auto': Morton leaves (:func:`morton_leaves`) when ``coords`` are given (keeping an
+        order that already is Morton), else METIS parts.
     leaf : int
         Target leaf size.
     """
@@ -172,4 +211,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
         return metis_leaves(A, leaf)
     t0 = time.perf_counter()
     perm, name = choose_ordering(A, coords, layout)
+    if name.startswith("morton"):
+        codes = quantized_morton_codes(np.asarray(coords, dtype=np.float64)[perm])
+        return morton_leaves(codes.astype(np.int64), leaf, perm, name, (time.perf_counter() - t0) * 1e3)
     return contiguous_leaves(A.shape[0], leaf, perm, name, (time.perf_counter() - t0) * 1e3)

@@ -7,7 +7,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
-from petsc_htp.leaves import Leaves, choose_leaves, contiguous_leaves, metis_leaves
+from scipy.sparse.csgraph import connected_components
+
+from petsc_htp.flow import Flow
+from petsc_htp.leaves import Leaves, choose_leaves, contiguous_leaves, metis_leaves, morton_leaves
+from petsc_htp.morton import quantized_morton_codes
 from petsc_htp.pcg import jacobi, pcg
 from petsc_htp.scenes import make_frame
 from petsc_htp.twolevel import analyse, factor
@@ -84,6 +88,25 @@ def test_contiguous_leaves_cover_rows_evenly():
     assert lv.n == 1000 and lv.n_leaves == 8
     assert lv.sizes.min() >= 124 and lv.max_size == 125
     assert np.array_equal(lv.perm, np.arange(1000))
+
+
+def pieces(A, lv):
+    """Connected components of every leaf's block."""
+    return [connected_components(A[r][:, r], directed=False)[0]
+            for r in (lv.perm[lo:hi] for lo, hi in zip(lv.offsets[:-1], lv.offsets[1:]))]
+
+
+def test_morton_leaves_are_quadtree_blocks():
+    fr = make_frame(4096, SEED)                        # a full 64 x 64 grid: the 128-cell blocks
+    lv = choose_leaves(fr.A, fr.coords)
+    assert np.array_equal(lv.offsets, contiguous_leaves(4096, leaf=128).offsets)
+    flow = Flow(128, 128)                              # an obstacle: plain chunks straddle blocks
+    A = flow.system()[0].tocsr()
+    lv, plain = choose_leaves(A, flow.coords), contiguous_leaves(A.shape[0], leaf=128)
+    assert lv.sizes.min() >= 96 and lv.max_size <= 160
+    assert sum(c > 1 for c in pieces(A, lv)) <= 2 < 20 < sum(c > 1 for c in pieces(A, plain))
+    with pytest.raises(ValueError, match="non-decreasing"):
+        morton_leaves(quantized_morton_codes(flow.coords)[::-1].astype(np.int64))
 
 
 def test_metis_leaves_are_deterministic_parts_of_the_graph():
