@@ -24,6 +24,8 @@ HELP = {
     "coarse": "twolevel coarse space: const (r=1), eig (local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r (eig; learned takes the network's r)",
+    "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
+                          "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
@@ -45,6 +47,7 @@ class HTPOptions:
     coarse: str = "eig"
     coarse_rank: int = 4
     coarse_checkpoint: str = ""
+    coarse_space_every: int = 1
     shift: float = 0.0
     spd_guard: bool = True
     threads: int = 1
@@ -71,7 +74,7 @@ class HTPOptions:
             raise ValueError(f"{opt}device {self.device!r} unknown; use cpu, cuda or auto")
         if not math.isfinite(self.shift) or self.shift < 0:
             raise ValueError(f"{opt}shift must be a finite non-negative number, got {self.shift}")
-        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("probe", -1)):
+        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
         if self.variant == "paper" and self.ordering == "metis":

@@ -145,16 +145,20 @@ class Composed:
 
     ``coarse`` is const, eig (``rank`` vectors) or learned (the basis of ``net``, a
     :class:`~petsc_htp.coarsenet.CoarseNet`, from the matrix, the analysis' coordinates and ``density``).
+    ``basis``, the ``P`` of an earlier step on the same analysis (``age`` steps old), replaces it.
     """
 
     def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_",
-                 net=None, density=None):
+                 net=None, density=None, basis=None, age=0):
         t0 = time.perf_counter()
         a = self.analysis = analysis
-        self.coarse, self.A = coarse, mat
+        self.coarse, self.A, self.age = coarse, mat, age
         n = a.leaf_of.size
         D = sp.csr_matrix((rows.data[a.inside], a.D_indices, a.D_indptr), shape=(n, n))
-        if coarse == "const":
+        self.null = _has_constant_null(mat)
+        if basis is not None:
+            P = basis
+        elif coarse == "const":
             P = (a.mask / a.mask.sum(1, keepdim=True).sqrt())[:, :, None]
         else:
             seeds = None
@@ -162,10 +166,9 @@ class Composed:
                 seeds = learned_basis(net, a.local, _local_neumann_block(mat, rows), a.coords, density).cpu()
             S = leafmodes.neumann_matrix(D, np.bincount(a.entry_row, rows.data, minlength=n), a.leaf_of)
             P = leafmodes.modes(S, a.pos, a.mask, rank if seeds is None else seeds.shape[2], a.ordering, seeds)
-        self.null = _has_constant_null(mat)
-        if self.null:
+        if basis is None and self.null:
             P = _with_exact_constants(P, a.mask)
-        self.rank = P.shape[2]
+        self.P, self.rank = P, P.shape[2]
         t1 = time.perf_counter()
         self.W = self._space(mat, P.numpy())
         self.AW = mat.matMult(self.W)
@@ -266,7 +269,8 @@ class Composed:
                 f"{lv.sizes.min()}-{lv.max_size}; exact solves by one Cholesky factor of blockdiag(A_kk) per rank "
                 f"(PCBJACOBI, {a.ordering} ordering)",
                 f"coarse: {self.coarse} ({COARSE_TEXT[self.coarse]}), r={self.rank}, global size {self.E.getSize()[0]}"
-                + ("; A's constant null space left out of W" if self.null else ""),
+                + ("; A's constant null space left out of W" if self.null else "")
+                + (f"; space kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago" if self.age else ""),
                 f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
                 f"coarse space {t['coarse_space']:.1f}, coarse operator {t['coarse_operator']:.1f}, "
                 f"leaf {t['leaf']:.1f}",

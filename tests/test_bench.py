@@ -16,7 +16,7 @@ from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E40
 from petsc_htp.bench.readme import END, START  # noqa: E402
 from petsc_htp.bench.studies import STUDIES  # noqa: E402
 from petsc_htp.bench.studies.base import Size, Study  # noqa: E402
-from petsc_htp.bench.studies.simulation import is_htp, ratios  # noqa: E402
+from petsc_htp.bench.studies.simulation import is_htp, is_twolevel, ratios  # noqa: E402
 from petsc_htp.bench.studies.stability import STRESS, boundary, natural_order, over_budget, sealed  # noqa: E402
 from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 from petsc_htp.scenes import make_frame  # noqa: E402
@@ -431,15 +431,16 @@ def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
     assert main(argv) == 0
     rows = rows_of(out, "simulation")
     sim = [r for r in rows if r["kind"] == "simulation"]
-    runs = {(r["method"], r["reuse"]) for r in sim}
-    assert runs == {("cg_jacobi", 0), ("cg_htp", 0), ("cg_htp", 2), ("cg_twolevel_const", 0),
-                    ("cg_twolevel_const", 2)}
-    for method, reuse in runs:
-        got = [r for r in sim if (r["method"], r["reuse"]) == (method, reuse)]
+    runs = {(r["method"], r["reuse"], r["keep"]) for r in sim}
+    assert runs == {("cg_jacobi", 0, 0), ("cg_htp", 0, 0), ("cg_htp", 2, 0), ("cg_twolevel_const", 0, 0),
+                    ("cg_twolevel_const", 2, 0), ("cg_twolevel_const", 0, 2)}
+    for method, reuse, keep in runs:
+        got = [r for r in sim if (r["method"], r["reuse"], r["keep"]) == (method, reuse, keep)]
         assert [r["frame"] for r in got] == [0, 1, 2, 3] and all(r["ok"] for r in got), got
         assert [r["rebuilt"] for r in got] == ([True] * 4 if reuse == 0 else [True, False, True, False])
         if method != "cg_jacobi":        # the python PC's own count of numeric setups agrees
             assert [r["numeric_setups"] for r in got] == [int(r["rebuilt"]) for r in got]
+    assert "cg_twolevel_const keep W 2" in (out / "report.md").read_text()
     gen = [r for r in rows if r["kind"] == "generator"]
     assert {r["method"] for r in gen} == {"cg_jacobi", "cg_htp", "cg_twolevel_const"}
     assert all(r["n"] == 32 * 32 and r["ok"] for r in gen)
@@ -461,6 +462,9 @@ def test_htp_variants_are_found_from_the_options():
     for name in htp | {"cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg"}:
         assert is_htp(resolve_method(name)) == (name in htp), name
     assert not is_htp(resolve_method("pyamg"))
+    twolevel = {"cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned", "gmres_twolevel"}
+    for name in htp | twolevel | {"cg_icc", "cg_gamg"}:
+        assert is_twolevel(resolve_method(name)) == (name in twolevel), name
 
 
 def test_new_stress_cases_exist():

@@ -151,6 +151,33 @@ def test_values_change_reuses_the_analysis(frames):
     assert ksp.getConvergedReason() > 0 and abs(ksp.getIterationNumber() - its1) <= 1
 
 
+def test_coarse_space_every_keeps_the_space_between_refreshes():
+    from petsc_htp.flow import Flow
+
+    sim = Flow(32, 32)
+    sim.advance()
+    A, b, _, _ = sim.system()
+    mat = petsc_mat(A)
+    _, _, _, ksp = solve(mat, b, htp_coarse_space_every=3)
+    ctx, ages, spaces = ksp.getPC().getPythonContext(), [], []
+    for _ in range(4):
+        ages.append(ctx.setup.age)
+        spaces.append(ctx.setup.P)
+        sim.project(ksp.getSolution().getArray())
+        sim.advance()
+        A, b, _, _ = sim.system()
+        mat.setValuesCSR(A.indptr, A.indices, A.data)
+        mat.assemble()
+        rhs, x = mat.createVecs()
+        rhs.setArray(b)
+        x.set(0)
+        ksp.solve(rhs, x)
+        assert ksp.getConvergedReason() > 0
+    assert ages == [0, 1, 2, 0] and (ctx.analysis_count, ctx.numeric_count) == (1, 5)
+    assert spaces[1] is spaces[0] and spaces[2] is spaces[0] and spaces[3] is not spaces[0]
+    assert ctx.setup.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
+
+
 @pytest.mark.slow
 def test_min_rayleigh_positive_on_every_stability_case():
     """M is SPD by construction: positive Rayleigh quotients on every stress case, in PETSc and in torch."""

@@ -3,7 +3,8 @@
 The run is recorded once per grid side (the pressure systems of :class:`petsc_htp.flow.Flow`,
 projected with ``cg_gamg``) and replayed by every method through
 :class:`petsc_htp.simulation.PressureSolver` and :class:`~petsc_htp.simulation.ReusePolicy`, so
-that all of them solve the same frames. HTP variants run with and without PC reuse.
+that all of them solve the same frames. HTP variants run with and without PC reuse; two-level ones
+also rebuilt every frame with their coarse space kept for k frames (``-htp_coarse_space_every k``).
 """
 from __future__ import annotations
 
@@ -27,12 +28,22 @@ GROWTH = 1.5                # ReusePolicy's cap on a reused PC (the example's de
 DENSITY_RATIO = 1000.0      # the example's default
 
 
-def is_htp(method) -> bool:
-    """True when the method's options (comments aside) use ``petsc_htp.HTPPC``."""
+def _uses(method, text) -> bool:
+    """True when the method's options (comments aside) contain ``text``."""
     if not method.is_petsc:
         return False
     lines = (li.split("#")[0] for li in method.path.read_text().splitlines())
-    return any("petsc_htp.HTPPC" in li for li in lines)
+    return any(text in " ".join(li.split()) for li in lines)
+
+
+def is_htp(method) -> bool:
+    """True when the method's options use ``petsc_htp.HTPPC``."""
+    return _uses(method, "petsc_htp.HTPPC")
+
+
+def is_twolevel(method) -> bool:
+    """True when the method's options select HTP's two-level variant."""
+    return _uses(method, "-htp_variant twolevel")
 
 
 def recorded_run(side, frames, seed=0):
@@ -86,12 +97,13 @@ def _frame_row(res, rtol):
             "ok": failure is None, "failure": failure, **res}
 
 
-def replay(method, systems, regions, reuse, extra) -> list:
-    """One method over the recorded run (reuse: rebuild every ``reuse`` frames, 0 = every frame)."""
+def replay(method, systems, regions, reuse, extra, keep=0) -> list:
+    """One method over the recorded run (reuse: rebuild every ``reuse`` frames, 0 = every frame;
+    keep: ``-htp_coarse_space_every keep``)."""
     from ...simulation import PressureSolver, ReusePolicy
     from ..runner import load
 
-    rows, loaded = [], load(method, extra)
+    rows, loaded = [], load(method, list(extra) + ([("htp_coarse_space_every", str(keep))] if keep else []))
     solver = PressureSolver(systems[0][0], regions, method.prefix)
     rtol, policy = solver.ksp.getTolerances()[0], ReusePolicy(reuse, GROWTH)
     try:
@@ -105,7 +117,7 @@ def replay(method, systems, regions, reuse, extra) -> list:
             if not row["ok"]:
                 solver.x.set(0.0)       # no garbage initial guess for the next frame
             policy.record({"its": row["iterations"], **row})
-            rows.append({"method": method.name, "htp": is_htp(method), "reuse": reuse, "n": A.shape[0],
+            rows.append({"method": method.name, "htp": is_htp(method), "reuse": reuse, "keep": keep, "n": A.shape[0],
                          "frame": frame, "kind": "simulation", **row})
     finally:
         solver.destroy()
@@ -114,8 +126,10 @@ def replay(method, systems, regions, reuse, extra) -> list:
 
 
 def variants(method, every) -> list:
-    """Reuse settings to run: ``[0, every]`` for HTP variants, ``[0]`` otherwise."""
-    return [0, every] if is_htp(method) and every else [0]
+    """(reuse, keep) settings to run: rebuilt every frame; HTP variants also with PC reuse, two-level
+    ones also with their coarse space kept ``every`` frames."""
+    return ([(0, 0)] + [(every, 0)] * (is_htp(method) and every > 0)
+            + [(0, every)] * (is_twolevel(method) and every > 1))
 
 
 def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
@@ -128,9 +142,9 @@ def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
     for side in sides:
         systems, regions = recorded_run(side, frames)
         for m in petsc:
-            for reuse in variants(m, every):
-                replay(m, systems[:1], regions, reuse, extra)      # warm-up, discarded
-                for row in replay(m, systems, regions, reuse, extra):
+            for reuse, keep in variants(m, every):
+                replay(m, systems[:1], regions, reuse, extra, keep)      # warm-up, discarded
+                for row in replay(m, systems, regions, reuse, extra, keep):
                     rows.append(tag(row, side=side))
                     tick()
         gen = [Problem(f, case="generator") for f in held_out_frames(side * side, gen_frames)]
@@ -141,9 +155,9 @@ def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
 
 # ------------------------------------------------------------------ report
 
-def label(method, reuse) -> str:
-    """``cg_htp`` or ``cg_htp reuse 5``."""
-    return f"{method} reuse {reuse}" if reuse else method
+def label(method, reuse, keep=0) -> str:
+    """``cg_htp``, ``cg_htp reuse 5`` or ``cg_twolevel_eig keep W 5``."""
+    return f"{method} reuse {reuse}" if reuse else f"{method} keep W {keep}" if keep else method
 
 
 def stats(rows) -> dict:
@@ -159,9 +173,9 @@ def stats(rows) -> dict:
 
 
 def _runs(res):
-    """{(side, method, reuse): simulation rows} and {(side, method): generator rows}, in run order."""
+    """{(side, method, reuse, keep): simulation rows} and {(side, method): generator rows}, in run order."""
     rows = res.rows["simulation"]
-    sim = group([r for r in rows if r["kind"] == "simulation"], "side", "method", "reuse")
+    sim = group([{"keep": 0, **r} for r in rows if r["kind"] == "simulation"], "side", "method", "reuse", "keep")
     gen = group([r for r in rows if r["kind"] == "generator"], "side", "method")
     return sim, gen
 
@@ -169,12 +183,12 @@ def _runs(res):
 def ratios(res) -> list:
     """[(side, method, HTP variant?, sim its, generator its, ratio)] of every method measured both ways.
 
-    The simulation side is the run without reuse.
+    The simulation side is the run rebuilt every frame.
     """
     sim, gen = _runs(res)
     out = []
     for (side, m), g in gen.items():
-        s = stats(sim.get((side, m, 0), []))["its"]
+        s = stats(sim.get((side, m, 0, 0), []))["its"]
         gi = float(np.mean([r["iterations"] for r in g if r["ok"]] or [math.nan]))
         out.append((side, m, bool(g[0].get("htp")), s, gi, s / gi))
     return out
@@ -184,10 +198,10 @@ def tables(res) -> str:
     """The per-run table and the iteration-ratio table."""
     sim, _ = _runs(res)
     head = ["Method", "N", "ms/frame mean", "p95", "mean its", "setups", "failures", "> 41.7 ms"]
-    body = [[label(m, reuse), n_label(rows[0]["n"]), ms(s["mean"]), ms(s["p95"]), its(s["its"]),
+    body = [[label(m, reuse, keep), n_label(rows[0]["n"]), ms(s["mean"]), ms(s["p95"]), its(s["its"]),
              f"{s['setups']}/{s['frames']}" + (f" ({s['restarts']} at the cap)" if s["restarts"] else ""),
              str(s["failed"]), str(s["over"])]
-            for (side, m, reuse), rows in sim.items() if (s := stats(rows))]
+            for (side, m, reuse, keep), rows in sim.items() if (s := stats(rows))]
     rat = [[m + (" (HTP)" if htp else ""), f"{side}²", its(s), its(g), ratio(r),
             ("✓" if r <= RATIO_BAR else "✗") if htp else ""] for side, m, htp, s, g, r in ratios(res)]
     return "\n\n".join([md_table(head, body),
@@ -204,14 +218,15 @@ def chart(res, out) -> str:
     color = colors(names)
     fig, axes = figure(6.5 * len(sides), 4.4, cols=len(sides))
     for ax, side in zip(axes[0], sides):
-        for (s, m, reuse), rows in sim.items():
+        for (s, m, reuse, keep), rows in sim.items():
             if s == side:
                 ax.plot([r["frame"] for r in rows], [r.get("total_ms") or math.nan for r in rows],
-                        color=color[m], ls="--" if reuse else "-", lw=1, label=label(m, reuse))
+                        color=color[m], ls="--" if reuse else ":" if keep else "-", lw=1,
+                        label=label(m, reuse, keep))
         ax.set_yscale("log")
         ax.set_xlabel("frame")
         ax.set_ylabel("setup + solve ms")
-        ax.set_title(f"{side} x {side} simulation (dashed: PC reuse)")
+        ax.set_title(f"{side} x {side} simulation (dashed: PC reuse; dotted: coarse space kept)")
         fps_lines(ax)
     axes[0, -1].legend(fontsize=7, ncol=2)
     return save(fig, out, CHART)
@@ -222,10 +237,11 @@ class Simulation(Study):
 
     name = "simulation"
     help = ("methods over a run of the two-phase flow (persistent KSP, previous pressure as guess; HTP variants "
-            "with and without PC reuse): ms per frame, iterations, setups, failures, sim/generator iterations")
+            "with and without PC reuse, two-level ones also with the coarse space kept): ms per frame, iterations, setups, failures, sim/generator iterations")
     sizes = (Size("sim_n", [64, 128], [32], "grid sides of the simulation study"),
              Size("sim_frames", 50, 4, "frames per simulation run"),
-             Size("sim_reuse", 5, 2, "HTP reuse runs rebuild every k frames"),
+             Size("sim_reuse", 5, 2, "HTP reuse runs rebuild every k frames (two-level: also the coarse space "
+                                      "kept k frames)"),
              Size("sim_gen_frames", 5, 1, "generator frames per N for the iteration ratio"))
     readme_links = ((CHART, "simulation frames"),)
 
@@ -250,7 +266,9 @@ class Simulation(Study):
             f"{DENSITY_RATIO:g}) per grid side, recorded once (projected with {REFERENCE}) and replayed by every "
             "method with one persistent KSP and the previous pressure as initial guess; HTP variants also with "
             f"PC reuse (rebuild every {meta.get('reuse', '?')} frames, or within a frame once the reused PC has "
-            f"taken {GROWTH}× the iterations of the last rebuilt frame: the solve then goes on from that iterate). "
+            f"taken {GROWTH}× the iterations of the last rebuilt frame: the solve then goes on from that iterate); "
+            f"two-level variants also rebuilt every frame with their coarse space kept for {meta.get('reuse', '?')} "
+            "frames (`keep W`: `-htp_coarse_space_every`, like GAMG's `-pc_gamg_reuse_interpolation`). "
             "ms per frame = setup + solve over every frame (failed ones included); setups: frames whose PC "
             "was rebuilt (the others run with `PCSetReusePreconditioner`); one warm-up frame per run is excluded.",
             tables(res),
