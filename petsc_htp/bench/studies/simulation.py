@@ -237,7 +237,8 @@ class Simulation(Study):
 
     name = "simulation"
     help = ("methods over a run of the two-phase flow (persistent KSP, previous pressure as guess; HTP variants "
-            "with and without PC reuse, two-level ones also with the coarse space kept): ms per frame, iterations, setups, failures, sim/generator iterations")
+            "with and without PC reuse, two-level ones also with the coarse space kept): ms per frame, "
+            "iterations, setups, failures, sim/generator iterations")
     sizes = (Size("sim_n", [64, 128], [32], "grid sides of the simulation study"),
              Size("sim_frames", 50, 4, "frames per simulation run"),
              Size("sim_reuse", 5, 2, "HTP reuse runs rebuild every k frames (two-level: also the coarse space "
