@@ -62,11 +62,14 @@ def _solve(factor: PETSc.Mat, X: np.ndarray) -> np.ndarray:
 
 
 def modes(S: sp.csr_matrix, pos: np.ndarray, mask: torch.Tensor, r: int, ordering: str = "natural",
-          seeds: torch.Tensor | None = None) -> torch.Tensor:
-    """Approximate r lowest eigenvectors of each leaf block of S, (K, Lmax, r) float64, zero on the padding.
+          seeds: torch.Tensor | None = None, extra: int = 0) -> tuple:
+    """Approximate r lowest eigenvectors of each leaf block of S, (K, Lmax, r) float64, zero on the padding,
+    and their Ritz values (K, r), ascending per leaf (inf for the missing vectors of a leaf under r rows).
 
     EIG_STEPS block inverse-iteration steps from the seeds, per-leaf QR, then Rayleigh-Ritz
-    with S; leaves with at most q rows get a dense eigh instead.
+    with S; leaves with at most q rows get a dense eigh instead. With ``extra``, that many further
+    cosines go through the same step, orthogonal to the first vectors, and come after them
+    (Rayleigh-Ritz within themselves): r + extra columns, the first r unchanged.
 
     Parameters
     ----------
@@ -84,6 +87,9 @@ def modes(S: sp.csr_matrix, pos: np.ndarray, mask: torch.Tensor, r: int, orderin
     """
     K, L = mask.shape
     X = _seeds(mask, r + EIG_OVERSAMPLE) if seeds is None else seeds
+    q0 = X.shape[2]
+    if extra:
+        X = torch.cat([X, _seeds(mask, q0 + extra)[:, :, q0:]], dim=2)
     q = X.shape[2]
     pad = lambda X: torch.zeros(K * L, X.shape[1], dtype=torch.float64).index_copy_(  # noqa: E731
         0, torch.as_tensor(pos), torch.as_tensor(X)).view(K, L, -1)
@@ -92,8 +98,12 @@ def modes(S: sp.csr_matrix, pos: np.ndarray, mask: torch.Tensor, r: int, orderin
     for _ in range(EIG_STEPS):
         X = torch.linalg.qr(pad(_solve(pc.getFactorMatrix(), rows(X))))[0] * mask[:, :, None]
     pc.destroy()
-    ritz = torch.linalg.eigh(X.mT @ pad(S @ rows(X)))[1][:, :, :r]
-    P = X @ ritz
+    SX = pad(S @ rows(X))
+    theta, ritz = torch.linalg.eigh(X[:, :, :q0].mT @ SX[:, :, :q0])
+    P, theta = X[:, :, :q0] @ ritz[:, :, :r], theta[:, :r]
+    if extra:                                           # QR kept the first q0 columns' span: the rest is its complement
+        theta_x, ritz_x = torch.linalg.eigh(X[:, :, q0:].mT @ SX[:, :, q0:])
+        P, theta = torch.cat([P, X[:, :, q0:] @ ritz_x], dim=2), torch.cat([theta, theta_x], dim=1)
     small = (mask.sum(1) <= q).nonzero().flatten()
     if small.numel():                                   # too few rows for the iteration: dense eigh
         dense = torch.zeros(small.numel(), L, L, dtype=torch.float64)
@@ -101,5 +111,7 @@ def modes(S: sp.csr_matrix, pos: np.ndarray, mask: torch.Tensor, r: int, orderin
             idx = np.flatnonzero(pos // L == k)
             slot = torch.as_tensor(pos[idx] % L)
             dense[j, slot[:, None], slot[None, :]] = torch.as_tensor(S[idx][:, idx].toarray())
-        P[small] = _eigh_modes(dense, mask[small], r)
-    return P
+        P[small] = _eigh_modes(dense, mask[small], r + extra)
+        theta[small] = torch.einsum("klr,klm,kmr->kr", P[small], dense, P[small])
+        theta[small] = torch.where(P[small].abs().sum(1) > 0, theta[small], torch.inf)
+    return P, theta

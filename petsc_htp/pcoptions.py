@@ -24,6 +24,8 @@ HELP = {
     "coarse": "twolevel coarse space: const (r=1), eig (local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r (eig; learned takes the network's r)",
+    "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
+                  "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
@@ -47,6 +49,7 @@ class HTPOptions:
     coarse: str = "eig"
     coarse_rank: int = 4
     coarse_checkpoint: str = ""
+    coarse_tol: float = 0.01
     coarse_space_every: int = 1
     shift: float = 0.0
     spd_guard: bool = True
@@ -72,8 +75,9 @@ class HTPOptions:
                 raise ValueError(f"{opt}{name} {getattr(self, name)!r} unknown; use one of {', '.join(allowed)}")
         if self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:"):
             raise ValueError(f"{opt}device {self.device!r} unknown; use cpu, cuda or auto")
-        if not math.isfinite(self.shift) or self.shift < 0:
-            raise ValueError(f"{opt}shift must be a finite non-negative number, got {self.shift}")
+        for name in ("shift", "coarse_tol"):
+            if not math.isfinite(getattr(self, name)) or getattr(self, name) < 0:
+                raise ValueError(f"{opt}{name} must be a finite non-negative number, got {getattr(self, name)}")
         for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")

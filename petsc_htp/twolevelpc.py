@@ -124,6 +124,17 @@ def _local_neumann_block(mat, rows) -> sp.csr_matrix:
     return block
 
 
+def _kept(theta, diag, leaf_of, sizes, base, tol) -> np.ndarray:
+    """Vectors each leaf keeps (at most its rows): the ``base`` first, and with ``tol`` > 0 also every
+    extra one whose Ritz value is at most ``tol`` times the leaf's mean diagonal."""
+    K = theta.shape[0]
+    count = np.full(K, base)
+    if tol > 0:
+        scale = np.bincount(leaf_of, np.abs(diag), minlength=K) / sizes
+        count += (theta[:, base:].numpy() <= tol * scale[:, None]).sum(1)
+    return np.minimum(count, sizes).astype(np.int64)
+
+
 class _Defaults:
     """Options under ``prefix`` that the user did not give, set for one setup and removed after it."""
 
@@ -149,28 +160,31 @@ class Composed:
     """
 
     def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_",
-                 net=None, density=None, basis=None, age=0):
+                 net=None, density=None, basis=None, age=0, tol=0.0):
         t0 = time.perf_counter()
         a = self.analysis = analysis
-        self.coarse, self.A, self.age = coarse, mat, age
+        self.coarse, self.A, self.age, self.tol = coarse, mat, age, tol
         n = a.leaf_of.size
         D = sp.csr_matrix((rows.data[a.inside], a.D_indices, a.D_indptr), shape=(n, n))
         self.null = _has_constant_null(mat)
         if basis is not None:
-            P = basis
+            P, counts = basis
         elif coarse == "const":
             P = (a.mask / a.mask.sum(1, keepdim=True).sqrt())[:, :, None]
+            counts = np.ones(a.leaves.n_leaves, dtype=np.int64)
         else:
             seeds = None
             if coarse == "learned":
                 seeds = learned_basis(net, a.local, _local_neumann_block(mat, rows), a.coords, density).cpu()
             S = leafmodes.neumann_matrix(D, np.bincount(a.entry_row, rows.data, minlength=n), a.leaf_of)
-            P = leafmodes.modes(S, a.pos, a.mask, rank if seeds is None else seeds.shape[2], a.ordering, seeds)
+            base = rank if seeds is None else seeds.shape[2]
+            P, theta = leafmodes.modes(S, a.pos, a.mask, base, a.ordering, seeds, base if tol > 0 else 0)
+            counts = _kept(theta, S.diagonal(), a.leaf_of, a.leaves.sizes, base, tol)
         if basis is None and self.null:
             P = _with_exact_constants(P, a.mask)
-        self.P, self.rank = P, P.shape[2]
+        self.P, self.counts, self.rank = P, counts, P.shape[2]
         t1 = time.perf_counter()
-        self.W = self._space(mat, P.numpy())
+        self.W = self._space(mat, P.numpy(), counts)
         self.AW = mat.matMult(self.W)
         self.E = self.W.transposeMatMult(self.AW)
         self.Wt, self.AWt = self.W.transpose(PETSc.Mat()), self.AW.transpose(PETSc.Mat())
@@ -205,24 +219,28 @@ class Composed:
         self.u, self.v = mat.createVecLeft(), mat.createVecLeft()
         self.setup_ms = 1e3 * (t3 - t0)
 
-    def _space(self, mat, P) -> PETSc.Mat:
-        """W: rank-local rows, columns (global leaf, vector), one leaf's constant left out under a null space."""
+    def _space(self, mat, P, counts) -> PETSc.Mat:
+        """W: rank-local rows, columns (global leaf, vector) for the first ``counts[k]`` vectors of leaf k,
+        one leaf's constant left out under a null space."""
         a = self.analysis
         K, r = a.leaves.n_leaves, P.shape[2]
         start, end = mat.getOwnershipRange()
+        mpi = mat.getComm().tompi4py()
+        local = int(counts.sum())
+        first, total = mpi.exscan(local) or 0, mpi.allreduce(local)
         drop = self.null and a.first_leaf + K == a.n_leaves_total      # the globally last leaf lives here
         vals = P.reshape(-1, r)[a.pos]                   # (n_local, r) in the rank's row order
-        cols = ((a.first_leaf + a.leaf_of) * r)[:, None] + np.arange(r)[None, :]
-        keep = np.ones(cols.shape, dtype=bool)
+        leaf_col = first + np.concatenate(([0], np.cumsum(counts)[:-1]))
+        cols = leaf_col[a.leaf_of][:, None] + np.arange(r)[None, :]
+        keep = np.arange(r)[None, :] < counts[a.leaf_of][:, None]
         if drop:
             last = a.leaf_of[:, None] == K - 1
             keep &= ~(last & (np.arange(r)[None, :] == 0))
             cols = cols - last
         rows = np.broadcast_to(np.arange(end - start)[:, None], cols.shape)
-        local_W = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])),
-                                shape=(end - start, a.n_leaves_total * r - self.null))
+        local_W = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(end - start, total - self.null))
         local_W.sort_indices()
-        W = PETSc.Mat().createAIJ(size=((end - start, mat.getSize()[0]), (K * r - drop, local_W.shape[1])),
+        W = PETSc.Mat().createAIJ(size=((end - start, mat.getSize()[0]), (local - drop, local_W.shape[1])),
                                   nnz=(np.diff(local_W.indptr).astype(PETSc.IntType), r), comm=mat.getComm())
         W.setValuesCSR(local_W.indptr.astype(PETSc.IntType), local_W.indices.astype(PETSc.IntType),
                        local_W.data)
@@ -268,7 +286,11 @@ class Composed:
         return [f"leaves: {lv.kind}, {a.n_leaves_total} in all ({lv.n_leaves} on this rank), sizes "
                 f"{lv.sizes.min()}-{lv.max_size}; exact solves by one Cholesky factor of blockdiag(A_kk) per rank "
                 f"(PCBJACOBI, {a.ordering} ordering)",
-                f"coarse: {self.coarse} ({COARSE_TEXT[self.coarse]}), r={self.rank}, global size {self.E.getSize()[0]}"
+                f"coarse: {self.coarse} ({COARSE_TEXT[self.coarse]}), "
+                + (f"r={self.rank}" if np.all(self.counts == self.rank) else
+                   f"r={self.counts.min()}-{self.counts.max()} per leaf (mean {self.counts.mean():.2f}; more where "
+                   f"Ritz values are at most {self.tol:g} x the leaf's mean diagonal)")
+                + f", global size {self.E.getSize()[0]}"
                 + ("; A's constant null space left out of W" if self.null else "")
                 + (f"; space kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago" if self.age else ""),
                 f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "

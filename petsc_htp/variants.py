@@ -74,12 +74,12 @@ class TwoLevel:
         """Coarse space (or the previous one, ``-htp_coarse_space_every``), W^T A W and its Cholesky, the
         leaves' Cholesky factor."""
         keep = previous is not None and previous.age + 1 < self.opts.coarse_space_every
-        basis, age = (previous.P, previous.age + 1) if keep else (None, 0)
+        basis, age = ((previous.P, previous.counts), previous.age + 1) if keep else (None, 0)
         if previous is not None:
             previous.destroy()
         rank = 1 if self.opts.coarse == "const" else self.opts.coarse_rank
         return twolevelpc.Composed(analysis, mat, A, self.opts.coarse, rank, self.prefix + "htp_", self.net, density,
-                                   basis, age)
+                                   basis, age, self.opts.coarse_tol)
 
     @staticmethod
     def apply(setup, x, y):

@@ -151,6 +151,28 @@ def test_values_change_reuses_the_analysis(frames):
     assert ksp.getConvergedReason() > 0 and abs(ksp.getIterationNumber() - its1) <= 1
 
 
+def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
+    from petsc_htp.scenes import assemble_operator, morton_cells
+
+    ix, iy = morton_cells(4096)
+    rho = np.where((ix // 4 + iy // 4) % 2 == 0, 1.0, 1e3)       # 4 x 4 patches at contrast 1e3
+    rough = assemble_operator(rho, ix, iy)
+    coords = np.column_stack(((ix + 0.5) / 64, (iy + 0.5) / 64))
+    counts = {}
+    for name, A, xy in (("smooth", frames[0].A, frames[0].coords), ("rough", rough, coords)):
+        petsc_htp.attach(mat := petsc_mat(A), coords=xy)
+        b = np.random.default_rng(0).standard_normal(A.shape[0])
+        its = {}
+        for tol in (0.0, 0.01):
+            reason, its[tol], relres, ksp = solve(mat, b - b.mean(), htp_coarse_tol=tol)
+            assert reason > 0 and relres <= 1.01e-8
+            counts[name, tol] = ksp.getPC().getPythonContext().setup.counts
+        assert its[0.01] <= its[0.0]
+    assert np.all(counts["smooth", 0.0] == 4) and np.all(counts["rough", 0.0] == 4)
+    assert counts["smooth", 0.01].mean() <= 4.25 and counts["rough", 0.01].mean() >= 5
+    assert counts["rough", 0.01].max() <= 8
+
+
 def test_coarse_space_every_keeps_the_space_between_refreshes():
     from petsc_htp.flow import Flow
 
@@ -214,7 +236,13 @@ def test_sparse_leaf_modes_span_the_torch_eig_basis(frames, monkeypatch):
     S = leafmodes.neumann_matrix(inside, np.asarray(A.sum(axis=1)).ravel(), leaf_of)
     pos = np.empty(A.shape[0], dtype=np.int64)
     pos[lv.perm] = an.pos.numpy()
-    sparse = leafmodes.modes(S, pos, an.mask, 4).numpy()
+    sparse, theta = leafmodes.modes(S, pos, an.mask, 4)
+    sparse, theta = sparse.numpy(), theta.numpy()
+    assert np.all(np.diff(theta, axis=1) >= 0) and np.all(theta[:, 0] >= 0)
+    for k in range(3):
+        P_k = sparse[k, :lv.sizes[k]]
+        rows = lv.perm[lv.offsets[k]:lv.offsets[k + 1]]
+        assert np.allclose(np.diag(P_k.T @ (S[rows][:, rows] @ P_k)), theta[k])
     for k in range(lv.n_leaves):
         n_k = lv.sizes[k]
         assert np.allclose(sparse[k, :n_k].T @ sparse[k, :n_k], np.eye(4), atol=1e-10)
