@@ -103,14 +103,12 @@ class PressureSolver:
         restarted = not rebuild and first["code"] < 0
         if restarted and not np.isfinite(self.x.norm()):
             self.x.set(0.0)
-        res = first if not restarted else self._attempt(True, self.max_it)
+        attempts = [first] + ([self._attempt(True, self.max_it)] if restarted else [])
         self.mat.mult(self.x, self.r)
         self.r.aypx(-1.0, self.b)
         after = numeric_count(pc)
-        return {"its": res["its"] + (first["its"] if restarted else 0), "code": res["code"],
-                "relres": self.r.norm() / (self.b.norm() or 1.0),
-                "setup_ms": first["setup_ms"] + (res["setup_ms"] if restarted else 0.0),
-                "solve_ms": first["solve_ms"] + (res["solve_ms"] if restarted else 0.0),
+        total = {key: sum(at[key] for at in attempts) for key in ("its", "setup_ms", "solve_ms")}
+        return {**total, "code": attempts[-1]["code"], "relres": self.r.norm() / (self.b.norm() or 1.0),
                 "update_ms": update_ms, "rebuilt": rebuild or restarted, "restarted": restarted,
                 "reused_its": first["its"] if restarted else 0,
                 "pc_setups": pc_setups() - setups,
@@ -161,11 +159,10 @@ class ReusePolicy:
         """Iterations a reused PC may take in the coming frame."""
         return max(1, math.ceil(self.growth * self.ref_its))
 
-    def record(self, res):
-        """Note a solved frame (the dict of :meth:`PressureSolver.solve`)."""
-        self.since = 1 if res["rebuilt"] else self.since + 1
-        if res["rebuilt"]:
-            self.ref_its = res["its"] - res["reused_its"]
+    def record(self, rebuilt, fresh_its):
+        """Note a solved frame: whether its PC was rebuilt, and the iterations with the rebuilt PC."""
+        self.since = 1 if rebuilt else self.since + 1
+        self.ref_its = fresh_its if rebuilt else self.ref_its
 
 
 # ------------------------------------------------------------------- runs
@@ -209,7 +206,7 @@ def simulate(cfg, label, prefix="", verbose=True):
             print(f"error: {label}: frame {frame}: KSP did not converge ({rec['reason']})",
                   file=sys.stderr, flush=True)
             break
-        policy.record(rec)
+        policy.record(rec["rebuilt"], rec["its"] - rec["reused_its"])
         if cfg["animate"]:
             images.append((sim.density_image(), sim.pressure_image(solver.pressure())))
     solver.destroy()

@@ -116,7 +116,7 @@ def replay(method, systems, regions, reuse, extra, keep=0) -> list:
                        "iterations": 0, "total_ms": None, "rebuilt": rebuild, "reused_its": 0}
             if not row["ok"]:
                 solver.x.set(0.0)       # no garbage initial guess for the next frame
-            policy.record({"its": row["iterations"], **row})
+            policy.record(row["rebuilt"], row["iterations"] - row["reused_its"])
             rows.append({"method": method.name, "htp": is_htp(method), "reuse": reuse, "keep": keep, "n": A.shape[0],
                          "frame": frame, "kind": "simulation", **row})
     finally:
