@@ -16,10 +16,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .embedding import grid_coordinates
 from .morton import quantized_morton_codes
-from .ordering import _check_square, choose_ordering
+from .ordering import _check_coords, _check_square, choose_ordering
 
-LAYOUTS = ("auto", "morton", "metis", "natural", "rcm")
+LAYOUTS = ("auto", "morton", "graph", "metis", "natural", "rcm")
+CUT_FACTOR = 2.5    # graph leaves cutting more than this / sqrt(leaf) of A's couplings fall back to METIS
 SLACK = 0.25        # a Morton leaf has leaf * (1 +- SLACK) rows
 
 
@@ -190,6 +192,24 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
     return Leaves(perm, offsets, "metis", (time.perf_counter() - t0) * 1e3)
 
 
+def _morton(A, coords, leaf, given_ok, kind, t0) -> Leaves:
+    """Morton leaves from coordinates (kept in the given order when it already is Morton's and ``given_ok``)."""
+    codes = quantized_morton_codes(np.asarray(coords, dtype=np.float64)).astype(np.int64)
+    if given_ok and np.all(codes[1:] >= codes[:-1]):
+        return morton_leaves(codes, leaf, None, kind + " (given)", (time.perf_counter() - t0) * 1e3)
+    perm = np.argsort(codes, kind="stable").astype(np.int64)
+    return morton_leaves(codes[perm], leaf, perm, kind, (time.perf_counter() - t0) * 1e3)
+
+
+def _cut_fraction(A, leaves) -> float:
+    """Share of A's stored off-diagonal entries that couple two leaves."""
+    leaf = np.empty(leaves.n, dtype=np.int64)
+    leaf[leaves.perm] = np.repeat(np.arange(leaves.n_leaves), leaves.sizes)
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    off = rows != A.indices
+    return float(np.count_nonzero(leaf[rows[off]] != leaf[A.indices[off]]) / max(np.count_nonzero(off), 1))
+
+
 def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     """Leaves for ``A`` by layout.
 
@@ -198,20 +218,32 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     A : scipy.sparse matrix, shape (N, N)
     coords : array_like, shape (N, 2), optional
         Row coordinates (needed for 'morton').
-    layout : {'auto', 'morton', 'metis', 'natural', 'rcm'}
-        'auto': Morton leaves (:func:`morton_leaves`) when ``coords`` are given (keeping an
-        order that already is Morton), else METIS parts.
+    layout : {'auto', 'morton', 'graph', 'metis', 'natural', 'rcm'}
+        'auto': Morton leaves (:func:`morton_leaves`) of ``coords`` when given (keeping an order that
+        already is Morton), else 'graph'. 'graph': Morton leaves of coordinates found in A's graph
+        (:func:`petsc_htp.embedding.grid_coordinates`), falling back to 'metis' when the graph is not
+        2-D-like or the leaves cut more than ``CUT_FACTOR / sqrt(leaf)`` of A's couplings. 'metis': METIS
+        parts of A's graph.
     leaf : int
         Target leaf size.
     """
     if layout not in LAYOUTS:
         raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
     A = _check_square(A)
-    if layout == "metis" or (layout == "auto" and coords is None):
-        return metis_leaves(A, leaf)
     t0 = time.perf_counter()
+    if layout == "graph" or (layout == "auto" and coords is None):
+        xy = grid_coordinates(A)
+        if xy is not None:
+            leaves = _morton(A, xy, _positive_int(leaf, "leaf"), False, "graph", t0)
+            if _cut_fraction(A, leaves) <= CUT_FACTOR / math.sqrt(leaf):
+                return leaves
+        return metis_leaves(A, leaf)
+    if layout == "metis":
+        return metis_leaves(A, leaf)
+    if layout in ("auto", "morton"):
+        if coords is None:
+            raise ValueError("leaf layout 'morton' needs coordinates (coords=None given)")
+        return _morton(A, _check_coords(coords, A.shape[0]), _positive_int(leaf, "leaf"), layout == "auto", "morton",
+                       t0)
     perm, name = choose_ordering(A, coords, layout)
-    if name.startswith("morton"):
-        codes = quantized_morton_codes(np.asarray(coords, dtype=np.float64)[perm])
-        return morton_leaves(codes.astype(np.int64), leaf, perm, name, (time.perf_counter() - t0) * 1e3)
     return contiguous_leaves(A.shape[0], leaf, perm, name, (time.perf_counter() - t0) * 1e3)

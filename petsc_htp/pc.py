@@ -103,7 +103,8 @@ class HTPPC:
         self._pattern = None
         self._values = None
         self._coords = None
-        self._csr = (None, None)
+        self._csr = (None, None, None)
+        self._guess = None
         self.threads_note = ""
         self._help_shown = False
         self._ev_setup = _event("HTPSetup")
@@ -138,14 +139,16 @@ class HTPPC:
                 self.threads_note = f"set process-wide to {opts.threads} by {self._opt(pc)}threads (was {changed})"
             A = read_csr(P)                             # this rank's rows (the whole matrix on one)
             pattern = (P.getId(), opts.pattern_key())
+            nonzero = A.data != 0
             if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
-                    or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1]))):
-                self._pattern = self.analysis = self.setup = None
+                    or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
+                            and _same_array(nonzero, self._csr[2]))):
+                self._free()
                 if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
                     self.variant = VARIANTS[opts.variant](opts, pc.getOptionsPrefix() or "")
                 self.analysis = self.variant.analyse(P, A, coords)
                 self._coords = None if coords is None else coords.copy()
-                self._csr = (A.indptr.copy(), A.indices.copy())
+                self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
                 self._pattern = pattern
                 self.analysis_count += 1
             self.variant.opts = opts
@@ -154,8 +157,9 @@ class HTPPC:
             self.setup_ms = 1e3 * (time.perf_counter() - t0)
             self.numeric_count += 1
             self.n = A.shape[0]
-            self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
             self._check(pc, opts)
+            if self.fallback_active:
+                self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
             self._values = values
         finally:
             self._ev_setup.end()
@@ -195,6 +199,19 @@ class HTPPC:
         """M is symmetric: same as :meth:`apply`."""
         self.apply(pc, x, y)
 
+    def preSolve(self, pc, ksp, b, x):
+        """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0)."""
+        self._guess = None
+        if self.setup is not None and not self.fallback_active:
+            stale = self._values is not None and pc.getOperators()[1].stateGet() != self._values[1]
+            self._guess = self.variant.presolve(self.setup, ksp, b, x, stale)
+
+    def postSolve(self, pc, ksp, b, x):
+        """After each KSPSolve: give the KSP back its initial-guess flag."""
+        if self._guess is not None:
+            ksp.setInitialGuessNonzero(self._guess)
+            self._guess = None
+
     # ------------------------------------------------------------- view
     def view(self, pc, viewer):
         """ASCII description: variant, model, the setup's own lines, setups, checks, fallback."""
@@ -221,10 +238,20 @@ class HTPPC:
         for line in out:                        # one call per line: each gets the viewer's indentation
             viewer.printfASCII(f"  {line}\n")
 
-    def reset(self, pc):
-        """Drop the analysis and the factors (the network stays loaded)."""
+    def _free(self):
+        """Free the analysis and its setups (PETSc objects included)."""
+        if self.analysis is not None and self.variant is not None:
+            self.variant.destroy(self.analysis)
         self.analysis = self.setup = None
         self._pattern = self._values = None
+
+    def reset(self, pc):
+        """Drop the analysis and the factors (the network stays loaded)."""
+        self._free()
+
+    def destroy(self, pc):
+        """Free everything when PETSc destroys the PC."""
+        self._free()
 
 
 def _same_array(a, b) -> bool:

@@ -6,34 +6,40 @@ from dataclasses import dataclass, fields
 
 from . import checkpoint
 
-ORDERINGS = ("auto", "morton", "rcm", "natural", "metis")
+ORDERINGS = ("auto", "morton", "graph", "rcm", "natural", "metis")
 VARIANTS = ("paper", "twolevel")
 COARSE = ("const", "eig", "learned")
 FALLBACKS = ("none", "jacobi")
+FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
-PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint")
+PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
+                  "coarse_tol")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
     "checkpoint": "HTP checkpoint file (empty: the shipped petsc_htp/checkpoints/htp_default.pt)",
     "device": "torch device for the network and the apply: cpu, cuda[:k] or auto",
-    "ordering": "auto (Morton with coordinates, else RCM for paper and METIS for twolevel), morton, rcm, "
-                "natural or metis (twolevel only)",
+    "ordering": "auto (Morton with coordinates, else RCM for paper and graph for twolevel), morton, rcm, natural, "
+                "graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's graph, METIS when "
+                "that graph is not 2-D-like) or metis (twolevel)",
     "leaf": "twolevel: rows per leaf (the paper's leaf size is the network's)",
     "coarse": "twolevel coarse space: const (r=1), eig (local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
-    "coarse_rank": "twolevel: coarse vectors per leaf r (eig; learned takes the network's r)",
+    "coarse_rank": "twolevel: coarse vectors per leaf r: each piece's constant and r - 1 more (eig; learned takes "
+                   "the network's r)",
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
+    "form": "twolevel: auto (deflated, balanced under a KSP that needs a symmetric M), deflated (one coarse solve "
+            "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
     "fallback": "none or jacobi: apply D^-1 when M is non-finite or found indefinite at setup",
-    "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check; -1: 4 for paper, 1 for twolevel, "
-             "SPD by construction)",
+    "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check; -1: 4 for paper, 0 for twolevel, "
+             "SPD by construction, whose factorisations are checked instead)",
 }
 
 
@@ -51,6 +57,7 @@ class HTPOptions:
     coarse_checkpoint: str = ""
     coarse_tol: float = 0.01
     coarse_space_every: int = 1
+    form: str = "auto"
     shift: float = 0.0
     spd_guard: bool = True
     threads: int = 1
@@ -70,7 +77,7 @@ class HTPOptions:
     def validate(self, opt: str = "-htp_") -> "HTPOptions":
         """Raise ValueError naming the first bad option."""
         for name, allowed in (("variant", VARIANTS), ("ordering", ORDERINGS), ("coarse", COARSE),
-                              ("fallback", FALLBACKS)):
+                              ("fallback", FALLBACKS), ("form", FORMS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{opt}{name} {getattr(self, name)!r} unknown; use one of {', '.join(allowed)}")
         if self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:"):
@@ -81,15 +88,15 @@ class HTPOptions:
         for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
-        if self.variant == "paper" and self.ordering == "metis":
-            raise ValueError(f"{opt}ordering metis needs {opt}variant twolevel (the paper's leaves are "
+        if self.variant == "paper" and self.ordering in ("metis", "graph"):
+            raise ValueError(f"{opt}ordering {self.ordering} needs {opt}variant twolevel (the paper's leaves are "
                              "contiguous blocks of one ordering)")
         return self
 
     @property
     def probes(self) -> int:
         """Rayleigh probes at setup: ``probe``, or the variant's default for -1."""
-        return self.probe if self.probe >= 0 else {"paper": 4, "twolevel": 1}[self.variant]
+        return self.probe if self.probe >= 0 else {"paper": 4, "twolevel": 0}[self.variant]
 
     def pattern_key(self) -> tuple:
         """The options a new analysis depends on."""

@@ -1,25 +1,26 @@
-"""The two-level variant inside HTPPC, composed from PETSc parts, so it runs on any number of ranks.
+"""The two-level variant inside HTPPC, composed from PETSc parts, on any number of ranks.
 
-    M = Q + (I - QA) B (I - AQ),   Q = W (W^T A W)^-1 W^T
+    M = Q + (I - QA) B (I - AQ)  (balanced)   or   M = Q + (I - QA) B  (deflated),   Q = W (W^T A W)^-1 W^T
 
-- leaves: each rank's rows cut into leaves of about ``leaf`` rows (Morton with coordinates,
-  METIS of the rank's block otherwise; :func:`petsc_htp.leaves.choose_leaves`);
-- B: exact leaf solves, one sparse Cholesky factor per rank of D = blockdiag(A_kk) (A without its
-  couplings between leaves), applied by ``PCBJACOBI`` on D with one block per rank;
-- W: a parallel AIJ matrix with r columns per leaf, the coarse space of each leaf's local Neumann
-  matrix (its block with every off-leaf coupling, to other leaves and other ranks, folded into the
-  diagonal, so a leaf sees the same matrix whatever the number of ranks): the coarse space is global.
-  'eig' vectors come from :mod:`petsc_htp.leafmodes` (one sparse factor for all leaves);
-- W^T A W: W^T (A W) by ``MatTransposeMatMult`` (A W and the explicit transposes serve the apply),
-  solved by a redundant Cholesky on every rank. When A has the constant
-  null space, every leaf's first column is its exact constant and one leaf's is left out, so W
-  spans A's range part of the same space and W^T A W is nonsingular.
+B = D^-1 solves the leaves exactly: D, A's leaf blocks in the leaves' row order, is one sparse matrix per
+rank with one Cholesky factor (natural ordering: the leaves are contiguous). W holds the coarse vectors
+of every leaf (:mod:`petsc_htp.coarsespace`), E = W^T A W is solved by a sparse direct factor. Because
+D B = I, W^T A B x = W^T x + C^T B x with C = (A - D) W, the couplings between leaves times W (a few
+rows per leaf); so the deflated form is y = v - W E^-1 C^T v with v = B x: one leaf solve, one coarse
+solve and two thin products per application. Started so that W^T r0 = 0 (:meth:`TwoLevelPC.presolve`),
+CG with the deflated M takes the iterations of the balanced one, which is SPD and costs a second
+coarse solve and three more thin products (for KSPs that need a symmetric M).
 
-This is PCDEFLATION's composition (deflation space W, additional PC B) in the symmetric balanced
-form, which needs no special initial guess. Apply and setup run in PETSc's compiled kernels.
+Construction is the analysis: leaves, index maps, pieces and components, every matrix with its final
+nonzero pattern (W holds each leaf's largest count of vectors), symbolic factorisations and products.
+:meth:`TwoLevelPC.numeric` then only moves values: new values into D, the Neumann matrix and O,
+numeric factorisations, the coarse space, and the products A W-free ``C = O W`` and ``E = W^T A W`` with
+PETSc's reuse. One global coarse space serves every rank; a Neumann operator's null space is handled
+per connected component (:mod:`petsc_htp.nullspace`).
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 
@@ -28,279 +29,526 @@ import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
 
-from . import leafmodes, twolevel
+from . import coarsespace, nullspace
 from .checks import rayleigh_reason
-from .coarsenet import learned_basis
-from .leaves import Leaves, choose_leaves
+from .leaflayout import layout
+from .leaves import choose_leaves
+
+SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
+COARSE_TEXT = {"const": "the constant of each piece of each leaf",
+               "eig": "piece constants and one inverse-iteration step of each leaf's Neumann matrix from smooth seeds",
+               "learned": "piece constants and the coarse network's vectors refined by the same step as eig"}
+LEAF_DEFAULTS = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
+COARSE_DEFAULTS = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
+COARSE_DEFAULTS_MPI = {"pc_type": "redundant", "redundant_pc_type": "lu",
+                       "redundant_pc_factor_mat_ordering_type": "qmd", "redundant_pc_factor_shift_type": "nonzero"}
 
 
-COARSE_TEXT = {"const": "each leaf's constant",
-               "eig": "one inverse-iteration step of each leaf's Neumann matrix from r smooth seeds",
-               "learned": "the coarse network's r vectors per leaf, refined by the same step as eig"}
+@dataclass(frozen=True)
+class Config:
+    """What the two-level variant is made of (HTPPC's ``-htp_*`` options).
 
-
-def _has_constant_null(mat) -> bool:
-    """True when A 1 = 0 to 1e-10 of the largest diagonal entry (a Neumann operator)."""
-    ones, prod = mat.createVecs()
-    ones.set(1.0)
-    mat.mult(ones, prod)
-    return prod.norm(PETSc.NormType.INFINITY) <= 1e-10 * mat.getDiagonal().norm(PETSc.NormType.INFINITY)
-
-
-@dataclass
-class Analysis:
-    """Per-pattern state of this rank's rows.
-
-    ``leaf_of`` is each local row's leaf; ``entry_row`` each stored entry's local row; ``inside``
-    the stored entries that couple two rows of one leaf, and ``D_indptr``/``D_indices`` their CSR
-    structure (local columns); ``pos``/``mask`` the padded (K, Lmax) layout; ``local`` the torch
-    analysis that the learned coarse network reads (None for const and eig).
+    Attributes
+    ----------
+    leaf : int
+        Rows per leaf.
+    ordering : str
+        Leaf layout: auto, morton, metis, natural or rcm (:func:`petsc_htp.leaves.choose_leaves`).
+    coarse : str
+        const, eig or learned.
+    rank : int
+        Vectors per leaf r: the piece constants and r - 1 more (eig; learned takes the network's r).
+    tol : float
+        With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.coarsespace`).
+    form : str
+        auto (deflated, or balanced under a KSP that needs a symmetric M), deflated or balanced.
     """
 
-    leaves: Leaves
-    leaf_of: np.ndarray
-    entry_row: np.ndarray
-    inside: np.ndarray
-    D_indptr: np.ndarray
-    D_indices: np.ndarray
-    pos: np.ndarray
-    mask: torch.Tensor
-    local: twolevel.TwoLevelAnalysis | None
-    coords: np.ndarray | None
-    contiguous: bool
-    first_leaf: int
-    n_leaves_total: int
-    analysis_ms: float
-
-    @property
-    def ordering(self) -> str:
-        """Fill-reducing ordering for the leaf factors: the rows' own when leaves are row blocks."""
-        return "natural" if self.contiguous else "nd"
+    leaf: int = 128
+    ordering: str = "auto"
+    coarse: str = "eig"
+    rank: int = 4
+    tol: float = 0.0
+    form: str = "auto"
 
 
-def analyse(mat, rows, coords=None, layout="auto", leaf=128, device="cpu", learned=False) -> Analysis:
-    """Leaves of this rank's rows (``rows``: scipy CSR, global columns) and the maps the numeric step uses."""
-    t0 = time.perf_counter()
-    start, end = mat.getOwnershipRange()
-    n = end - start
-    pattern = rows[:, start:end].tocsr()
-    leaves = choose_leaves(pattern, coords, layout, leaf)
-    leaf_of = np.empty(n, dtype=np.int64)
-    leaf_of[leaves.perm] = np.repeat(np.arange(leaves.n_leaves), leaves.sizes)
-    entry_row = np.repeat(np.arange(n), np.diff(rows.indptr))
-    col = rows.indices.astype(np.int64) - start
-    inside = (col >= 0) & (col < n)
-    inside[inside] = leaf_of[entry_row[inside]] == leaf_of[col[inside]]
-    pos = np.empty(n, dtype=np.int64)
-    pos[leaves.perm] = twolevel._padded_positions(leaves)
-    mask = torch.zeros(leaves.n_leaves * leaves.max_size, dtype=torch.float64)
-    mask[pos] = 1.0
-    local = twolevel.analyse(pattern, leaves, device) if learned else None
-    mpi = mat.getComm().tompi4py()
-    first = mpi.exscan(leaves.n_leaves) or 0
-    in_order = np.array_equal(leaves.perm, np.arange(n))             # leaves are blocks of the rows
-    contiguous = mpi.allreduce(int(not in_order)) == 0
-    return Analysis(leaves, leaf_of, entry_row, inside,
-                    np.concatenate(([0], np.cumsum(np.bincount(entry_row[inside], minlength=n)))),
-                    col[inside], pos, mask.view(leaves.n_leaves, leaves.max_size), local, coords, contiguous,
-                    first, mpi.allreduce(leaves.n_leaves), 1e3 * (time.perf_counter() - t0))
+class _Collective:
+    """The few collectives the analysis needs, through mpi4py only on more than one rank."""
+
+    def __init__(self, comm):
+        self.size = comm.getSize()
+        self.mpi = comm.tompi4py() if self.size > 1 else None
+
+    def exscan(self, value: int) -> int:
+        return 0 if self.mpi is None else (self.mpi.exscan(int(value)) or 0)
+
+    def sum(self, value: int) -> int:
+        return int(value) if self.mpi is None else self.mpi.allreduce(int(value))
+
+    def max_array(self, values: np.ndarray) -> np.ndarray:
+        if self.mpi is None:
+            return values
+        from mpi4py import MPI
+
+        out = np.empty_like(values)
+        self.mpi.Allreduce(np.ascontiguousarray(values), out, op=MPI.MAX)
+        return out
+
+    def gather_rows(self, values: np.ndarray) -> np.ndarray:
+        """Every rank's rows of a 2-column int array, concatenated in rank order."""
+        if self.mpi is None:
+            return values
+        return np.concatenate(self.mpi.allgather(values)).reshape(-1, values.shape[1])
 
 
-def _with_exact_constants(P, mask):
-    """Basis whose first column on every leaf is the leaf's normalised constant, the rest orthonormal to it."""
-    const = mask / mask.sum(1, keepdim=True).sqrt()
-    rest = P - const[:, :, None] * torch.einsum("kl,klr->kr", const, P)[:, None, :]
-    q, _ = torch.linalg.qr(rest[:, :, 1:] if P.shape[2] > 1 else rest[:, :, :0])
-    return torch.cat([const[:, :, None], q * mask[:, :, None]], dim=2)
+def _seqaij(indptr, indices, values, n, m=None) -> PETSc.Mat:
+    """A SeqAIJ on COMM_SELF that uses the given CSR arrays in place (new values: change them, stateIncrease)."""
+    return PETSc.Mat().createAIJWithArrays((n, n if m is None else m), (indptr, indices, values),
+                                           comm=PETSc.COMM_SELF)
 
 
-def _local_neumann_block(mat, rows) -> sp.csr_matrix:
-    """This rank's diagonal block of ``mat`` with its couplings to other ranks added to the diagonal."""
-    start, end = mat.getOwnershipRange()
-    block = rows[:, start:end].tocsr()
-    outside = np.asarray(rows.sum(axis=1)).ravel() - np.asarray(block.sum(axis=1)).ravel()
-    block = (block + sp.diags(outside)).tocsr()
-    block.sort_indices()
-    return block
+def _coo_aij(comm, rows, cols, shape, local) -> PETSc.Mat:
+    """An AIJ on ``comm`` with the COO pattern (global ``rows``, ``cols``); values come by ``setValuesCOO``."""
+    mat = PETSc.Mat().create(comm=comm)
+    mat.setSizes(((local[0], shape[0]), (local[1], shape[1])))
+    mat.setType(PETSc.Mat.Type.AIJ)
+    mat.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+    return mat
 
 
-def _kept(theta, diag, leaf_of, sizes, base, tol) -> np.ndarray:
-    """Vectors each leaf keeps (at most its rows): the ``base`` first, and with ``tol`` > 0 also every
-    extra one whose Ritz value is at most ``tol`` times the leaf's mean diagonal."""
-    K = theta.shape[0]
-    count = np.full(K, base)
-    if tol > 0:
-        scale = np.bincount(leaf_of, np.abs(diag), minlength=K) / sizes
-        count += (theta[:, base:].numpy() <= tol * scale[:, None]).sum(1)
-    return np.minimum(count, sizes).astype(np.int64)
+@contextlib.contextmanager
+def _scoped(prefix, defaults):
+    """``defaults`` in PETSc's options database under ``prefix`` where the user set nothing, for the block only."""
+    db = PETSc.Options(prefix)
+    added = [name for name in defaults if not db.hasName(name)]
+    for name in added:
+        db.setValue(name, defaults[name])
+    try:
+        yield
+    finally:
+        for name in added:
+            db.delValue(name)
 
 
-class _Defaults:
-    """Options under ``prefix`` that the user did not give, set for one setup and removed after it."""
-
-    def __init__(self, prefix: str, values: dict):
-        self.db, self.values = PETSc.Options(prefix), values
-
-    def __enter__(self):
-        self.added = [name for name in self.values if not self.db.hasName(name)]
-        for name in self.added:
-            self.db.setValue(name, self.values[name])
-
-    def __exit__(self, *exc):
-        for name in self.added:
-            self.db.delValue(name)
+def _pc(comm, mat, prefix, defaults) -> PETSc.PC:
+    """A PC on ``mat`` configured from ``defaults`` and, winning over them, the options under ``prefix``."""
+    pc = PETSc.PC().create(comm)
+    pc.setOptionsPrefix(prefix)
+    pc.setOperators(mat, mat)
+    with _scoped(prefix, defaults):
+        pc.setFromOptions()
+    return pc
 
 
-class Composed:
-    """The numeric step: W, W^T A W and its redundant Cholesky, the leaf factor, work vectors.
+def _ms(t0) -> float:
+    return 1e3 * (time.perf_counter() - t0)
 
-    ``coarse`` is const, eig (``rank`` vectors) or learned (the basis of ``net``, a
-    :class:`~petsc_htp.coarsenet.CoarseNet`, from the matrix, the analysis' coordinates and ``density``).
-    ``basis``, the ``P`` of an earlier step on the same analysis (``age`` steps old), replaces it.
+
+class TwoLevelPC:
+    """The two-level preconditioner of one matrix pattern; :meth:`numeric` takes each frame's values.
+
+    Parameters
+    ----------
+    mat : petsc4py.PETSc.Mat
+        The operator (AIJ, any number of ranks); products with it are reused frame after frame.
+    rows : scipy.sparse.csr_matrix
+        This rank's rows of ``mat`` (global columns, sorted).
+    coords : numpy.ndarray (n, 2), optional
+        This rank's row coordinates (Morton leaves).
+    cfg : Config
+    prefix : str
+        Options prefix of the inner solvers: ``<prefix>leaf_`` (leaf factor) and ``<prefix>cs_`` (coarse).
+    net : CoarseNet, optional
+        The coarse network (``cfg.coarse == 'learned'``).
     """
 
-    def __init__(self, analysis: Analysis, mat, rows, coarse: str, rank: int, prefix: str = "htp_",
-                 net=None, density=None, basis=None, age=0, tol=0.0):
+    def __init__(self, mat, rows, coords, cfg: Config, prefix="htp_", net=None):
         t0 = time.perf_counter()
-        a = self.analysis = analysis
-        self.coarse, self.A, self.age, self.tol = coarse, mat, age, tol
-        n = a.leaf_of.size
-        D = sp.csr_matrix((rows.data[a.inside], a.D_indices, a.D_indptr), shape=(n, n))
-        self.null = _has_constant_null(mat)
-        if basis is not None:
-            P, counts = basis
-        elif coarse == "const":
-            P = (a.mask / a.mask.sum(1, keepdim=True).sqrt())[:, :, None]
-            counts = np.ones(a.leaves.n_leaves, dtype=np.int64)
-        else:
-            seeds = None
-            if coarse == "learned":
-                seeds = learned_basis(net, a.local, _local_neumann_block(mat, rows), a.coords, density).cpu()
-            S = leafmodes.neumann_matrix(D, np.bincount(a.entry_row, rows.data, minlength=n), a.leaf_of)
-            base = rank if seeds is None else seeds.shape[2]
-            P, theta = leafmodes.modes(S, a.pos, a.mask, base, a.ordering, seeds, base if tol > 0 else 0)
-            counts = _kept(theta, S.diagonal(), a.leaf_of, a.leaves.sizes, base, tol)
-        if basis is None and self.null:
-            P = _with_exact_constants(P, a.mask)
-        self.P, self.counts, self.rank = P, counts, P.shape[2]
-        t1 = time.perf_counter()
-        self.W = self._space(mat, P.numpy(), counts)
-        self.AW = mat.matMult(self.W)
-        self.E = self.W.transposeMatMult(self.AW)
-        self.Wt, self.AWt = self.W.transpose(PETSc.Mat()), self.AW.transpose(PETSc.Mat())
-        self.coarse_ksp = PETSc.KSP().create(mat.getComm())
-        self.coarse_ksp.setOptionsPrefix(prefix + "cs_")
-        self.coarse_ksp.setOperators(self.E, self.E)
-        self.coarse_ksp.setType("preonly")
-        self.coarse_ksp.getPC().setType("redundant")
-        with _Defaults(prefix + "cs_", {"redundant_pc_type": "cholesky", "redundant_pc_factor_shift_type": "nonzero",
-                                        "redundant_pc_factor_mat_ordering_type": "nd"}):
-            self.coarse_ksp.setFromOptions()
-            self.coarse_ksp.setUp()
-        t2 = time.perf_counter()
-        start = mat.getOwnershipRange()[0]
-        self.D = PETSc.Mat().createAIJ(size=(mat.getSizes()[0], mat.getSizes()[0]), comm=mat.getComm(),
-                                       csr=(a.D_indptr.astype(PETSc.IntType),
-                                            (a.D_indices + start).astype(PETSc.IntType), D.data))
-        self.B = PETSc.PC().create(mat.getComm())
-        self.B.setOptionsPrefix(prefix + "leaf_")
-        self.B.setOperators(self.D, self.D)
-        self.B.setType("bjacobi")
-        with _Defaults(prefix + "leaf_", {"sub_ksp_type": "preonly", "sub_pc_type": "cholesky",
-                                          "sub_pc_factor_shift_type": "nonzero",
-                                          "sub_pc_factor_mat_ordering_type": a.ordering}):
-            self.B.setFromOptions()
-            self.B.setUp()
-            self.B.setUpOnBlocks()
-        t3 = time.perf_counter()
-        self.times = {"coarse_space": 1e3 * (t1 - t0), "coarse_operator": 1e3 * (t2 - t1),
-                      "leaf": 1e3 * (t3 - t2)}
-        self.c1, self.c2, self.c3 = (self.E.createVecLeft() for _ in range(3))
-        self.u, self.v = mat.createVecLeft(), mat.createVecLeft()
-        self.setup_ms = 1e3 * (t3 - t0)
-
-    def _space(self, mat, P, counts) -> PETSc.Mat:
-        """W: rank-local rows, columns (global leaf, vector) for the first ``counts[k]`` vectors of leaf k,
-        one leaf's constant left out under a null space."""
-        a = self.analysis
-        K, r = a.leaves.n_leaves, P.shape[2]
+        self.mat, self.cfg, self.net, self.coords = mat, cfg, net, coords
+        self.comm, self.coll = mat.getComm(), _Collective(mat.getComm())
         start, end = mat.getOwnershipRange()
-        mpi = mat.getComm().tompi4py()
-        local = int(counts.sum())
-        first, total = mpi.exscan(local) or 0, mpi.allreduce(local)
-        drop = self.null and a.first_leaf + K == a.n_leaves_total      # the globally last leaf lives here
-        vals = P.reshape(-1, r)[a.pos]                   # (n_local, r) in the rank's row order
-        leaf_col = first + np.concatenate(([0], np.cumsum(counts)[:-1]))
-        cols = leaf_col[a.leaf_of][:, None] + np.arange(r)[None, :]
-        keep = np.arange(r)[None, :] < counts[a.leaf_of][:, None]
-        if drop:
-            last = a.leaf_of[:, None] == K - 1
-            keep &= ~(last & (np.arange(r)[None, :] == 0))
-            cols = cols - last
-        rows = np.broadcast_to(np.arange(end - start)[:, None], cols.shape)
-        local_W = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(end - start, total - self.null))
-        local_W.sort_indices()
-        W = PETSc.Mat().createAIJ(size=((end - start, mat.getSize()[0]), (local - drop, local_W.shape[1])),
-                                  nnz=(np.diff(local_W.indptr).astype(PETSc.IntType), r), comm=mat.getComm())
-        W.setValuesCSR(local_W.indptr.astype(PETSc.IntType), local_W.indices.astype(PETSc.IntType),
-                       local_W.data)
-        W.assemble()
-        return W
+        n = end - start
+        if n == 0:
+            raise ValueError("a rank owns no rows of the matrix; the two-level preconditioner needs rows on every rank")
+        block = rows if self.coll.size == 1 else rows[:, start:end].tocsr()
+        self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf)
+        lay = self.lay = layout(rows, start, self.leaves)
+        self.block = block
+        self._components(rows)
+        self._columns()
+        self._matrices(rows, prefix)
+        self.times, self.age, self.kept, self._forced, self._dense = {}, 0, None, None, None
+        self.numeric_count = 0
+        self.analysis_ms = _ms(t0)
+
+    # ------------------------------------------------------------------ analysis
+    def _components(self, rows):
+        """Global piece numbering and the connected components of A over all ranks."""
+        lay, coll = self.lay, self.coll
+        pc = lay.pieces
+        self.piece_offset = coll.exscan(pc.n_pieces)
+        self.n_pieces = coll.sum(pc.n_pieces)
+        row_piece = pc.label[lay.iperm] + self.piece_offset          # global piece of each of A's local rows
+        o_rows, o_cols = lay.o_rows, rows.indices[lay.o_src].astype(np.int64)
+        start, n = lay.start, lay.n
+        local = (o_cols >= start) & (o_cols < start + n)
+        other = np.zeros(o_cols.size, dtype=np.int64)
+        other[local] = row_piece[o_cols[local] - start]
+        if not local.all():
+            other[~local] = self._ghost_pieces(row_piece, o_cols[~local])
+        edges = np.unique(np.stack([row_piece[o_rows], other], 1), axis=0)
+        self.n_comp, self.comp_of_piece = nullspace.components(self.n_pieces, coll.gather_rows(edges))
+        self.comp_of_row = self.comp_of_piece[row_piece]              # of A's local rows
+        self.isolated = np.zeros(self.n_pieces, dtype=bool)
+        self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
+        self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
+
+    def _ghost_pieces(self, row_piece, cols) -> np.ndarray:
+        """Global piece of other ranks' rows ``cols`` (one scatter, at analysis)."""
+        owned = self.mat.createVecLeft()
+        owned.getArray()[:] = row_piece
+        want, where = np.unique(cols, return_inverse=True)
+        ghost = PETSc.Vec().createSeq(want.size, comm=PETSc.COMM_SELF)
+        index = PETSc.IS().createGeneral(want.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        scatter = PETSc.Scatter().create(owned, index, ghost, None)
+        scatter.scatter(owned, ghost, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        out = ghost.getArray().astype(np.int64)[where]
+        for obj in (owned, ghost, index, scatter):
+            obj.destroy()
+        return out
+
+    def _columns(self):
+        """Coarse columns of every leaf (modes, extras, then one per piece), their global numbers and W's structure."""
+        lay, cfg = self.lay, self.cfg
+        lv, pc = lay.leaves, lay.pieces
+        self.q = 0 if cfg.coarse == "const" else (self.net.cfg.rank if cfg.coarse == "learned" else cfg.rank) - 1
+        self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
+        lead = self.q + self.extra
+        self.ncols = lead + pc.count
+        first = self.coll.exscan(self.ncols.sum())
+        self.m = self.coll.sum(self.ncols.sum())
+        self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
+        self.piece_col = self.leaf_col[pc.leaf] + lead + np.arange(pc.n_pieces) - pc.first[pc.leaf]
+        self.constants = coarsespace.piece_constants(lay)
+        width = lead + self.constants.shape[2]
+        per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
+        row = np.repeat(np.arange(lay.n), per_row)
+        j = np.arange(row.size) - np.repeat(np.cumsum(per_row) - per_row, per_row)
+        p = lay.iperm[row]                                            # the row in the leaves' order
+        self.w_rows = row + lay.start
+        self.w_cols = self.leaf_col[lay.leaf[p]] + j
+        self.w_local_col = self.w_cols - first                        # W's columns of this rank's rows are its own
+        self.w_src = lay.pos[p] * width + j                           # where each value sits in the padded basis
+        if lead:
+            self.seeds = coarsespace.seeds(lay.leaf, lv.offsets, lv.sizes, 1, lead)
+
+    def _matrices(self, rows, prefix):
+        """Every matrix with its final pattern, the solvers and the work vectors."""
+        lay, comm = self.lay, self.comm
+        n, N = lay.n, self.mat.getSize()[0]
+        it = PETSc.IntType
+        self.d_indptr, self.d_indices = lay.d_indptr.astype(it), lay.d_indices.astype(it)
+        self.d_values = np.zeros(lay.d_src.size)
+        self.D = _seqaij(self.d_indptr, self.d_indices, self.d_values, n)
+        self.B = _pc(PETSc.COMM_SELF, self.D, prefix + "leaf_", LEAF_DEFAULTS)
+        self.s_values, self.S, self.S_factor = None, None, None
+        if self.q + self.extra:
+            self.s_values = np.zeros(lay.d_src.size)
+            self.S = _seqaij(self.d_indptr, self.d_indices, self.s_values, n)
+            self.S_factor = _pc(PETSc.COMM_SELF, self.S, prefix + "leaf_", LEAF_DEFAULTS)
+            self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(n, n))
+        self.o_values = np.zeros(lay.o_src.size)
+        self.O = _coo_aij(comm, lay.o_rows + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
+        self.w_values = np.zeros(self.w_src.size)
+        self.W = _coo_aij(comm, self.w_rows, self.w_cols, (N, self.m), (n, int(self.ncols.sum())))
+        self.C = self.E = self.F = None
+        self.coarse_prefix = prefix + "cs_"
+        self.coarse = None
+        self.v, self.t = self.mat.createVecLeft(), self.mat.createVecLeft()
+        self.xp, self.vp = np.zeros(n), np.zeros(n)
+        self.xs = PETSc.Vec().createWithArray(self.xp, comm=PETSc.COMM_SELF)
+        self.vs = PETSc.Vec().createWithArray(self.vp, comm=PETSc.COMM_SELF)
+        self.direct = lay.identity and self.coll.size == 1            # B works on the KSP's vectors
+
+    # ------------------------------------------------------------------ numeric
+    def numeric(self, rows, density=None, keep_space=False):
+        """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W."""
+        lay, T = self.lay, {}
+        data = rows.data
+        t0 = time.perf_counter()
+        rowsum = np.bincount(lay.entry_row, data, minlength=lay.n)
+        null, drop, ground = self._null(rowsum, data)
+        np.take(data, lay.d_src, out=self.d_values)
+        if ground.any():
+            rows_g = self._first_rows(ground)
+            self.d_values[lay.d_diag[rows_g]] += np.abs(self.d_values[lay.d_diag[rows_g]]).max(initial=1.0)
+        self.D.stateIncrease()
+        self.B.setUp()
+        T["leaf"] = _ms(t0)
+        t0 = time.perf_counter()
+        np.take(data, lay.o_src, out=self.o_values)
+        self.O.setValuesCOO(self.o_values)
+        if not (keep_space and self.kept is not None):
+            P, self.kept = self._space(rows, rowsum, density)
+            np.take(P.numpy().reshape(-1), self.w_src, out=self.w_values)
+            self.age = 0
+        else:
+            self.age += 1
+        self._dropped = self.piece_col[drop[self.piece_offset:self.piece_offset + lay.pieces.n_pieces]]
+        values = self.w_values
+        if self._dropped.size:
+            gone = np.zeros(int(self.ncols.sum()), dtype=bool)
+            gone[self._dropped - self.leaf_col[0]] = True
+            values = np.where(gone[self.w_local_col], 0.0, values)
+        self.W.setValuesCOO(values)
+        T["coarse_space"] = _ms(t0)
+        t0 = time.perf_counter()
+        self._products()
+        T["products"] = _ms(t0)
+        t0 = time.perf_counter()
+        self.coarse.setUp()
+        T["coarse_factor"] = _ms(t0)
+        self.times, self.null_components = T, int(null.sum())
+        self.numeric_count += 1
+
+    def _null(self, rowsum, data) -> tuple:
+        """Null components (attached MatNullSpace, else A's row sums), and the pieces to drop and to ground."""
+        nsp = self.mat.getNullSpace()
+        reduce = self.coll.max_array if self.coll.size > 1 else None
+        if nsp.handle:
+            null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
+                                               self.comp_of_row, self.n_comp, reduce)
+        else:
+            diag = data[self.lay.d_src[self.lay.d_diag]]
+            null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp, reduce)
+        drop, ground = nullspace.dropped(null, self.comp_of_piece, self.isolated)
+        return null, drop, ground[self.piece_offset:self.piece_offset + self.lay.pieces.n_pieces]
+
+    def _first_rows(self, pieces_mask) -> np.ndarray:
+        """The first row (leaves' order) of each marked local piece."""
+        label = self.lay.pieces.label
+        first = np.full(pieces_mask.size, -1)
+        first[label[::-1]] = np.arange(label.size)[::-1]
+        return first[pieces_mask]
+
+    def _space(self, rows, rowsum, density) -> tuple:
+        """The coarse basis (padded) and the vectors kept per leaf."""
+        lay = self.lay
+        if not self.q + self.extra:
+            return coarsespace.basis(lay, self.constants)
+        diag = coarsespace.neumann_diagonal(self.d_values[lay.d_diag], rowsum[lay.perm],
+                                            lay.leaf_sums(self.d_values), lay.leaf, lay.leaves.sizes)
+        np.copyto(self.s_values, self.d_values)
+        self.s_values[lay.d_diag] = diag
+        self.S.stateIncrease()
+        self.S_factor.setUp()
+        start = self.seeds if self.cfg.coarse != "learned" else self._learned_seeds(rows, density)
+        return coarsespace.basis(lay, self.constants, start, self._solve_neumann, self.extra, self.S_csr, diag,
+                                 self.cfg.tol)
+
+    def _learned_seeds(self, rows, density) -> np.ndarray:
+        """The coarse network's vectors (constant column left out) as seeds, plus the cosine extras."""
+        from . import twolevel
+        from .coarsenet import learned_basis
+
+        if getattr(self, "_torch_analysis", None) is None:
+            self._torch_analysis = twolevel.analyse(self.block, self.leaves)
+        block = self.block if self.coll.size == 1 else _folded_block(rows, self.lay.start, self.lay.n)
+        P = learned_basis(self.net, self._torch_analysis, block, self.coords, density).cpu()
+        P = P[:, :, 1:] if self.net.cfg.const_column else P
+        K, L = self.lay.shape
+        net = P.reshape(K * L, -1)[torch.as_tensor(self.lay.pos)].numpy()
+        return np.asfortranarray(np.hstack([net, self.seeds[:, self.q:]]) if self.extra else net)
+
+    def _solve_neumann(self, X) -> np.ndarray:
+        """S^-1 X for an (n, q) array, one multi-vector triangular solve (a view of a work array)."""
+        if self._dense is None or self._dense[0].shape != X.shape:
+            self._free_dense()
+            rhs = np.empty(X.shape, order="F")
+            out = np.empty(X.shape, order="F")
+            self._dense = (rhs, out, PETSc.Mat().createDense(X.shape, array=rhs, comm=PETSc.COMM_SELF),
+                           PETSc.Mat().createDense(X.shape, array=out, comm=PETSc.COMM_SELF))
+        rhs, out, R, Y = self._dense
+        np.copyto(rhs, X)
+        R.stateIncrease()
+        self.S_factor.getFactorMatrix().matSolve(R, Y)
+        return out
+
+    def _free_dense(self):
+        if self._dense is not None:
+            self._dense[2].destroy()
+            self._dense[3].destroy()
+        self._dense = None
+
+    def _products(self):
+        """C = O W, E = W^T A W (lifted on unused columns), F = W^T C for the balanced form; symbolic once."""
+        first = self.C is None
+        self.C = self.O.matMult(self.W, result=self.C)
+        if first and self.coll.size == 1:           # PETSc's 'rap' PtAP is about 1.5x faster here than its default
+            with _scoped(self.mat.getOptionsPrefix() or "", {"matptap_via": "rap"}):
+                self.E = self.mat.ptap(self.W)
+        else:
+            self.E = self.mat.ptap(self.W, result=self.E)
+        if self.F is not None or self.form() == "balanced":
+            self.F = self.W.transposeMatMult(self.C, result=self.F)
+        lift = self.E.createVecLeft() if first else self._lift
+        diag = self.E.getDiagonal()
+        live = np.abs(diag.getArray()) > 0
+        scale = self.coll.max_array(np.array([np.abs(diag.getArray()).max(initial=0.0)]))[0] or 1.0
+        lift.getArray()[:] = np.where(live, 0.0, scale)
+        self.E.setDiagonal(lift, addv=PETSc.InsertMode.ADD_VALUES)
+        diag.destroy()
+        self._lift = lift
+        if first:
+            defaults = COARSE_DEFAULTS if self.coll.size == 1 else COARSE_DEFAULTS_MPI
+            self.coarse = _pc(self.comm, self.E, self.coarse_prefix, defaults)
+            self.g, self.c, self.c2 = (self.E.createVecLeft() for _ in range(3))
+
+    # ------------------------------------------------------------------ apply
+    def form(self, ksp_type=None) -> str:
+        """The form in use: the configured one, or for 'auto' the one the last :meth:`presolve` chose (deflated
+        unless ``ksp_type`` needs a symmetric M)."""
+        if self._forced or self.cfg.form != "auto":
+            return self._forced or self.cfg.form
+        return "balanced" if ksp_type in SYMMETRIC_KSPS else getattr(self, "_auto", "deflated")
+
+    def _leaf_solve(self, x, v):
+        """v = B x (x, v: Vecs laid out like A's rows)."""
+        if self.direct:
+            self.B.apply(x, v)
+            return
+        np.take(x.array_r, self.lay.perm, out=self.xp)
+        self.B.apply(self.xs, self.vs)
+        np.take(self.vp, self.lay.iperm, out=v.array_w)
 
     def mult(self, x, y):
-        """y = M x = Q x + v - Q A v with v = B (x - A Q x), through AW and the explicit transposes."""
-        self.Wt.mult(x, self.c1)
-        self.coarse_ksp.solve(self.c1, self.c2)           # c2 = E^-1 W^T x
-        self.AW.mult(self.c2, self.u)
-        self.u.aypx(-1.0, x)                              # u = x - A Q x
-        self.B.apply(self.u, self.v)
-        self.AWt.mult(self.v, self.c1)
-        self.coarse_ksp.solve(self.c1, self.c3)           # c3 = E^-1 W^T A v
-        self.c3.aypx(-1.0, self.c2)
-        self.W.mult(self.c3, y)
-        y.axpy(1.0, self.v)
+        """y = M x in the form in use."""
+        if self.form() == "deflated":
+            self._leaf_solve(x, self.v)                    # v = B x
+            self.C.multTranspose(self.v, self.g)           # g = C^T v = (A W)^T B x - W^T x
+            self.coarse.apply(self.g, self.c)
+            self.c.scale(-1.0)
+            self.W.multAdd(self.c, self.v, y)              # y = v - W E^-1 C^T v
+            return
+        self.W.multTranspose(x, self.g)
+        self.coarse.apply(self.g, self.c)                  # c1 = E^-1 W^T x
+        self.C.mult(self.c, self.t)
+        self.t.aypx(-1.0, x)                               # x - C c1
+        self._leaf_solve(self.t, self.v)                   # s = B (x - C c1)
+        self.C.multTranspose(self.v, self.g)
+        self.F.mult(self.c, self.c2)
+        self.g.axpy(-1.0, self.c2)                         # C^T s - W^T C c1
+        self.coarse.apply(self.g, self.c2)
+        self.c2.scale(-1.0)
+        self.W.multAdd(self.c2, self.v, y)                 # y = s - W E^-1 (C^T s - W^T C c1)
 
-    def check(self, probes: int) -> str:
-        """Empty when M is finite and positive on ``probes`` random vectors (collective)."""
-        x, y = self.A.createVecs()
-        rng = PETSc.Random().create(self.A.getComm())
+    def presolve(self, ksp, b, x, stale=False):
+        """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
+        this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP needs a symmetric
+        M or the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A)."""
+        kind = ksp.getType()
+        if self.cfg.form == "auto":
+            self._auto = "balanced" if kind in SYMMETRIC_KSPS or stale else "deflated"
+            if self._auto == "balanced" and self.F is None:
+                self.F = self.W.transposeMatMult(self.C)
+        if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:
+            return None
+        nonzero = ksp.getInitialGuessNonzero()
+        if nonzero:
+            self.mat.mult(x, self.t)
+            self.t.aypx(-1.0, b)
+        else:
+            b.copy(self.t)
+            x.set(0.0)
+        self.W.multTranspose(self.t, self.g)
+        self.coarse.apply(self.g, self.c)
+        self.W.multAdd(self.c, x, x)
+        ksp.setInitialGuessNonzero(True)
+        return nonzero
+
+    # ------------------------------------------------------------------ checks and views
+    def check(self, probes=0) -> str:
+        """Empty when every factorisation succeeded, the coarse space is finite and ``probes`` random Rayleigh
+        quotients of the balanced M are positive, else why not (collective)."""
+        bad = []
+        for name, pc in (("leaf", self.B), ("Neumann", self.S_factor), ("coarse", self.coarse)):
+            if pc is not None and pc.getFailedReason() != PETSc.PC.FailedReason.NOERROR:
+                bad.append(f"{name} factorisation failed ({pc.getFailedReason()})")
+        if not np.all(np.isfinite(self.w_values)):
+            bad.append("the coarse space is not finite")
+        if self.coll.sum(1 if bad else 0) and not bad:
+            bad.append("a factorisation failed on another rank")
+        if bad or not probes:
+            return "; ".join(bad)
+        return rayleigh_reason(self._min_rayleigh(probes), "two-level")
+
+    def _min_rayleigh(self, probes) -> float:
+        """Smallest x^T M x / x^T x of the balanced (symmetric) M over random x."""
+        if self.F is None:
+            self.F = self.W.transposeMatMult(self.C)
+        x, y = self.mat.createVecs()
+        rng = PETSc.Random().create(self.comm)
+        self._forced = "balanced"
         quotients = []
-        for _ in range(probes):
-            x.setRandom(rng)
-            self.mult(x, y)
-            quotients.append(x.dot(y) / x.dot(x))
-        rng.destroy()
-        return rayleigh_reason(np.min(quotients) if quotients else None, "two-level")
+        try:
+            for _ in range(probes):
+                x.setRandom(rng)
+                self.mult(x, y)
+                quotients.append(x.dot(y) / x.dot(x))
+        finally:
+            self._forced = None
+            for obj in (x, y, rng):
+                obj.destroy()
+        return float(np.min(quotients))
 
     @property
     def nbytes(self) -> int:
-        """Bytes held on this rank: W, A W, their transposes, W^T A W, the leaf Cholesky factor (8 bytes a value)."""
-        held = sum(m.getInfo()["nz_used"] for m in (self.W, self.Wt, self.AW, self.AWt, self.E))
-        held += sum(sub.getPC().getFactorMatrix().getInfo()["nz_used"] for sub in self.B.getBJacobiSubKSP())
+        """Bytes held on this rank: D and its factor, W, C, the coarse operator and its factor (8 bytes a value)."""
+        mats = [self.D, self.W, self.C, self.E, self.B.getFactorMatrix()] + ([self.F] if self.F is not None else [])
+        if self.S is not None:
+            mats += [self.S, self.S_factor.getFactorMatrix()]
+        held = sum(m.getInfo()["nz_used"] for m in mats)
+        if self.coarse.getType() != "redundant":
+            held += self.coarse.getFactorMatrix().getInfo()["nz_used"]
         return int(8 * held)
 
     def describe(self) -> list:
         """Short lines for ``-ksp_view``."""
-        a, lv, t = self.analysis, self.analysis.leaves, self.times
-        n = self.A.getSize()[0]
-        return [f"leaves: {lv.kind}, {a.n_leaves_total} in all ({lv.n_leaves} on this rank), sizes "
-                f"{lv.sizes.min()}-{lv.max_size}; exact solves by one Cholesky factor of blockdiag(A_kk) per rank "
-                f"(PCBJACOBI, {a.ordering} ordering)",
-                f"coarse: {self.coarse} ({COARSE_TEXT[self.coarse]}), "
-                + (f"r={self.rank}" if np.all(self.counts == self.rank) else
-                   f"r={self.counts.min()}-{self.counts.max()} per leaf (mean {self.counts.mean():.2f}; more where "
-                   f"Ritz values are at most {self.tol:g} x the leaf's mean diagonal)")
-                + f", global size {self.E.getSize()[0]}"
-                + ("; A's constant null space left out of W" if self.null else "")
+        lay, t, cfg = self.lay, self.times, self.cfg
+        lv = lay.leaves
+        kept = self.kept if self.kept is not None else self.ncols
+        q = (f"{kept.min()}-{kept.max()} per leaf (mean {kept.mean():.2f})" if kept.min() != kept.max()
+             else f"{kept.min()} per leaf")
+        n = self.mat.getSize()[0]
+        return [f"leaves: {lv.kind}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), sizes "
+                f"{lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces; exact solves by one factor of the leaf "
+                f"blocks per rank ({self.B.getType()})",
+                f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
+                + (f" (up to {self.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
+                   if self.extra else "")
+                + f"; global size {self.m}, {self.null_components} null component(s) left out"
                 + (f"; space kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago" if self.age else ""),
-                f"setup ms: analysis {a.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
-                f"coarse space {t['coarse_space']:.1f}, coarse operator {t['coarse_operator']:.1f}, "
-                f"leaf {t['leaf']:.1f}",
+                f"form: {self.form()} (" + ("y = v - W E^-1 C^T v, v = B x; started so that W^T r0 = 0"
+                                            if self.form() == "deflated" else "symmetric balanced form") + ")",
+                f"setup ms: analysis {self.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
+                + ", ".join(f"{k.replace('_', ' ')} {v:.1f}" for k, v in t.items()),
                 "apply: float64 in PETSc (a linear operator to working precision: any KSP, any rtol)",
-                f"memory on this rank: {self.nbytes / max(n // self.A.getComm().getSize(), 1):.0f} bytes per unknown"]
+                f"memory on this rank: {self.nbytes / max(n // self.coll.size, 1):.0f} bytes per unknown"]
 
     def destroy(self):
-        """Free the PETSc objects."""
-        for obj in (self.W, self.Wt, self.AW, self.AWt, self.E, self.coarse_ksp, self.B, self.D,
-                    self.c1, self.c2, self.c3, self.u, self.v):
-            obj.destroy()
+        """Free every PETSc object."""
+        self._free_dense()
+        for obj in (self.D, self.B, self.S, self.S_factor, self.O, self.W, self.C, self.E, self.F, self.coarse,
+                    self.v, self.t, self.xs, self.vs, getattr(self, "_lift", None), getattr(self, "g", None),
+                    getattr(self, "c", None), getattr(self, "c2", None)):
+            if obj is not None:
+                obj.destroy()
+
+
+def _folded_block(rows, start, n) -> sp.csr_matrix:
+    """A rank's diagonal block with its couplings to other ranks added to the diagonal."""
+    block = rows[:, start:start + n].tocsr()
+    outside = np.asarray(rows.sum(axis=1)).ravel() - np.asarray(block.sum(axis=1)).ravel()
+    block = (block + sp.diags(outside)).tocsr()
+    block.sort_indices()
+    return block

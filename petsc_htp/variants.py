@@ -9,6 +9,10 @@ options prefix, with
   (``check(probes)``, ``describe()``, ``nbytes``); ``previous`` is the last setup of the same
   analysis, whose buffers it may reuse;
 - ``apply(setup, x, y)``: y = M x on PETSc Vecs;
+- ``presolve(setup, ksp, b, x, stale)``: called before each KSPSolve (``stale``: the setup is reused on
+  an operator whose values changed since); returns the KSP's initial-guess flag when it changed it
+  (restored after the solve), else None;
+- ``destroy(analysis)``: free what the analysis and its setups hold;
 - ``model``: a line naming the model, or None.
 
 A new variant is one class here and its name in :data:`VARIANTS`.
@@ -17,7 +21,7 @@ from __future__ import annotations
 
 from . import coarsenet, twolevelpc
 from .checkpoint import DEFAULT
-from .inference import HTP, resolve_device
+from .inference import HTP
 
 
 class Paper:
@@ -50,41 +54,61 @@ class Paper:
         """y = M x through the float32 torch apply."""
         y.array_w[...] = setup.apply(x.array_r)
 
+    @staticmethod
+    def presolve(setup, ksp, b, x, stale):
+        """Nothing to do before a solve."""
+        return None
+
+    @staticmethod
+    def destroy(analysis):
+        """Nothing to free: torch tensors go with their Python objects."""
+
 
 class TwoLevel:
-    """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64, SPD), from
-    PETSc parts (:mod:`petsc_htp.twolevelpc`), on any number of ranks."""
+    """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64), from PETSc parts
+    (:mod:`petsc_htp.twolevelpc`), on any number of ranks. The analysis object is the setup: its numeric
+    step refreshes it in place."""
 
     model = None
+
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
-        self.device = resolve_device("cpu" if opts.device == "auto" else opts.device)
         self.net = None
         if opts.coarse == "learned":
             self.net, prov = coarsenet.cached(opts.coarse_checkpoint or None)
             self.model = (f"coarse network {self.net.n_parameters()} parameters, r={self.net.cfg.rank}; "
                           f"checkpoint {opts.coarse_checkpoint or 'shipped ' + str(coarsenet.DEFAULT)}")
 
+    def config(self) -> twolevelpc.Config:
+        """The two-level configuration from the options."""
+        o = self.opts
+        return twolevelpc.Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form)
+
     def analyse(self, mat, A, coords):
-        """Leaves of each rank's rows (Morton with coordinates, else METIS) and their index sets."""
-        return twolevelpc.analyse(mat, A, coords, self.opts.ordering, self.opts.leaf, self.device,
-                                  learned=self.opts.coarse == "learned")
+        """Leaves, index maps, components and every matrix with its pattern (see :class:`twolevelpc.TwoLevelPC`)."""
+        return twolevelpc.TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
     def numeric(self, analysis, mat, A, density, previous):
-        """Coarse space (or the previous one, ``-htp_coarse_space_every``), W^T A W and its Cholesky, the
-        leaves' Cholesky factor."""
+        """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
         keep = previous is not None and previous.age + 1 < self.opts.coarse_space_every
-        basis, age = ((previous.P, previous.counts), previous.age + 1) if keep else (None, 0)
-        if previous is not None:
-            previous.destroy()
-        rank = 1 if self.opts.coarse == "const" else self.opts.coarse_rank
-        return twolevelpc.Composed(analysis, mat, A, self.opts.coarse, rank, self.prefix + "htp_", self.net, density,
-                                   basis, age, self.opts.coarse_tol)
+        analysis.cfg = self.config()
+        analysis.numeric(A, density, keep_space=keep)
+        return analysis
 
     @staticmethod
     def apply(setup, x, y):
         """y = M x in PETSc."""
         setup.mult(x, y)
+
+    @staticmethod
+    def presolve(setup, ksp, b, x, stale):
+        """The deflated form's start (x0 += Q r0); returns the KSP's guess flag to restore, or None."""
+        return setup.presolve(ksp, b, x, stale)
+
+    @staticmethod
+    def destroy(analysis):
+        """Free the PETSc objects."""
+        analysis.destroy()
 
 
 VARIANTS = {"paper": Paper, "twolevel": TwoLevel}

@@ -1,0 +1,113 @@
+"""The two-level coarse vectors of every leaf, from one sparse solve with the leaves' Neumann matrices.
+
+Each leaf gets, in this order, q vectors from one block inverse-iteration step of its local Neumann
+matrix S (the leaf block with every coupling out of the leaf folded into the diagonal, slightly
+shifted) from smooth seeds, made orthogonal to the constants of the leaf's pieces
+(:mod:`petsc_htp.nullspace`) and orthonormal; with ``extra`` > 0, that many more seeds through the
+same step, made orthogonal to all of those and kept where their Ritz value is at most ``tol`` times
+the leaf's mean diagonal; then the normalised constant of each of its pieces. Vectors that come out
+linearly dependent are left zero, as are kept-out extras: a zero coarse vector is an unused column.
+One step from smooth seeds gives approximate low eigenvectors, which take fewer CG iterations here
+than converged ones.
+
+Rows are in the leaves' order (:class:`~petsc_htp.leaflayout.LeafLayout`); the batched per-leaf work
+runs on the padded (K, Lmax, q) layout. ``solve`` applies S^-1 to an (n, q) array, so the factor can be
+PETSc's (:mod:`petsc_htp.twolevelpc`) or any other.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+DEPENDENT = 1e-8       # R_jj below this times the leaf's largest: column j is dependent and left zero
+NEUMANN_SHIFT = 1e-4   # S's shift, times the leaf's mean |diagonal| (its constants are exact coarse vectors)
+
+
+def seeds(leaf, offsets, sizes, first, count) -> np.ndarray:
+    """Smooth start vectors cos(pi j (i + 1/2) / n_k), j = first .. first + count - 1, as an (n, count) array.
+
+    ``i`` is a row's position in its leaf and ``n_k`` the leaf's size (rows in the leaves' order).
+    """
+    i = np.arange(leaf.size) - offsets[leaf] + 0.5
+    j = np.arange(first, first + count)
+    return np.asfortranarray(np.cos(np.pi * i[:, None] * j[None, :] / sizes[leaf][:, None]))
+
+
+def neumann_diagonal(diag, rowsum, insum, leaf, sizes) -> np.ndarray:
+    """S's diagonal: A's diagonal plus each row's couplings out of its leaf (``rowsum - insum``), shifted."""
+    folded = diag + rowsum - insum
+    mean = np.bincount(leaf, np.abs(folded), minlength=sizes.size) / sizes
+    return folded + NEUMANN_SHIFT * mean[leaf]
+
+
+def piece_constants(lay) -> torch.Tensor:
+    """(K, Lmax, c): every piece's normalised constant in column (its index within the leaf), c the most pieces."""
+    K, L = lay.shape
+    pc = lay.pieces
+    P = torch.zeros(K * L, int(pc.count.max()), dtype=torch.float64)
+    P[torch.as_tensor(lay.pos), torch.as_tensor(pc.index)] = torch.as_tensor(1.0 / np.sqrt(pc.size[pc.label]))
+    return P.view(K, L, -1)
+
+
+def _orthonormal(X) -> torch.Tensor:
+    """Orthonormal columns spanning each leaf's X (K, Lmax, q); dependent columns come out zero."""
+    if X.shape[2] == 0:
+        return X
+    Q, R = torch.linalg.qr(X)
+    d = R.diagonal(dim1=1, dim2=2).abs()
+    return Q * (d > DEPENDENT * d.amax(1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny))[:, None, :]
+
+
+def _without(X, C) -> torch.Tensor:
+    """X (K, Lmax, q) minus its components along the orthonormal columns C (K, Lmax, c) of each leaf."""
+    return X - C @ (C.mT @ X)
+
+
+def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=None, tol=0.0) -> tuple:
+    """The coarse vectors of every leaf, padded: (K, Lmax, q + extra + c).
+
+    Parameters
+    ----------
+    lay : LeafLayout
+    constants : Tensor (K, Lmax, c)
+        :func:`piece_constants` of the layout.
+    start_vectors : numpy.ndarray (n, q + extra), optional
+        Seeds in the leaves' row order (None: the piece constants alone, the 'const' space).
+    solve : callable
+        (n, q) -> S^-1 (n, q).
+    extra : int
+        How many of the seeds (the last ones) are extras, kept by their Ritz value.
+    S : scipy.sparse.csr_matrix, optional
+        S in the leaves' order (needed with ``extra``).
+    diag : numpy.ndarray (n,), optional
+        S's diagonal (needed with ``extra``).
+    tol : float
+
+    Returns
+    -------
+    P : Tensor (K, Lmax, q + extra + c)
+        Zero on the padding and in unused columns.
+    kept : numpy.ndarray (K,)
+        Nonzero columns per leaf.
+    """
+    K, L = lay.shape
+    if start_vectors is None:
+        P = constants
+    else:
+        pos = torch.as_tensor(lay.pos)
+        Y = torch.zeros(K * L, start_vectors.shape[1], dtype=torch.float64)
+        Y[pos] = torch.as_tensor(solve(start_vectors))
+        Y = _without(Y.view(K, L, -1), constants)
+        q = Y.shape[2] - extra
+        blocks = [_orthonormal(Y[:, :, :q])]
+        if extra:
+            rest = _orthonormal(_without(Y[:, :, q:], blocks[0]))
+            SX = torch.zeros(K * L, extra, dtype=torch.float64)
+            SX[pos] = torch.as_tensor(S @ rest.reshape(K * L, -1)[pos].numpy())
+            theta, U = torch.linalg.eigh(rest.mT @ SX.view(K, L, -1))
+            rest = rest @ U
+            scale = torch.as_tensor(np.bincount(lay.leaf, np.abs(diag), minlength=K) / lay.leaves.sizes)
+            blocks.append(rest * (theta <= tol * scale[:, None])[:, None, :])
+        P = torch.cat(blocks + [constants], dim=2)
+    kept = (P.abs().sum(1) > 0).sum(1).numpy()
+    return P, kept

@@ -1,0 +1,132 @@
+"""Where every stored entry of a rank's rows goes in the two-level method: built once per nonzero pattern.
+
+Given a rank's rows of A (scipy CSR, global columns) and its leaves, :func:`layout` returns index maps
+that turn a later frame's values (``A.data``, same pattern) into the leaf blocks D in the leaves' row
+order (each leaf contiguous, so D factors with the natural ordering), the couplings between leaves O
+(A - D, in A's own numbering, other ranks' columns included), and the pieces of every leaf
+(:mod:`petsc_htp.nullspace`). Explicit zeros are not couplings: they are left out of D and O and do
+not join pieces. Pure numpy: no PETSc, no torch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .leaves import Leaves
+from .nullspace import Pieces, find_pieces
+
+
+@dataclass(frozen=True, eq=False)
+class LeafLayout:
+    """Per-pattern index maps of one rank's rows (see the module docstring).
+
+    Rows come in two orders: A's (the rank's local rows) and the leaves' (``perm``: leaf-order row p
+    is A's local row ``perm[p]``). D lives in the leaves' order, O in A's.
+
+    Attributes
+    ----------
+    leaves : Leaves
+    start : int
+        First global row of the rank.
+    perm, iperm : numpy.ndarray (n,)
+        Leaf order -> A's local row, and back.
+    identity : bool
+        The leaves are contiguous blocks of A's rows (``perm`` is the identity).
+    leaf : numpy.ndarray (n,)
+        Leaf of every row in the leaves' order.
+    pos : numpy.ndarray (n,)
+        Padded position ``k * Lmax + i`` of every row in the leaves' order.
+    entry_row : numpy.ndarray (nnz,)
+        A's local row of every stored entry.
+    d_indptr, d_indices : numpy.ndarray
+        CSR structure of D (leaves' order; sorted).
+    d_src : numpy.ndarray
+        The A.data entry of every value of D.
+    d_diag : numpy.ndarray (n,)
+        Where each row's diagonal sits in D's values.
+    o_src : numpy.ndarray
+        The A.data entries of O (nonzero couplings between leaves), in A's row order.
+    pieces : Pieces
+        Pieces of the leaves (rows in the leaves' order).
+    isolated : numpy.ndarray of bool (P,)
+        Pieces with no nonzero coupling out of their leaf.
+    """
+
+    leaves: Leaves
+    start: int
+    perm: np.ndarray
+    iperm: np.ndarray
+    identity: bool
+    leaf: np.ndarray
+    pos: np.ndarray
+    entry_row: np.ndarray
+    d_indptr: np.ndarray
+    d_indices: np.ndarray
+    d_src: np.ndarray
+    d_diag: np.ndarray
+    o_src: np.ndarray
+    pieces: Pieces
+    isolated: np.ndarray
+
+    @property
+    def n(self) -> int:
+        """Rows of the rank."""
+        return int(self.perm.size)
+
+    @property
+    def shape(self) -> tuple:
+        """Padded leaf layout (K, Lmax)."""
+        return self.leaves.n_leaves, self.leaves.max_size
+
+    @property
+    def o_rows(self) -> np.ndarray:
+        """A's local row of every value of O."""
+        return self.entry_row[self.o_src]
+
+    def leaf_sums(self, values) -> np.ndarray:
+        """Per row in the leaves' order: the sum of its values of D."""
+        return np.add.reduceat(values, self.d_indptr[:-1]) if values.size else np.zeros(self.n)
+
+
+def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
+    """Index maps of a rank's rows ``rows`` (CSR, sorted, global columns, local rows ``start`` ...) and leaves."""
+    n = rows.shape[0]
+    if leaves.n != n:
+        raise ValueError(f"leaves cover {leaves.n} rows but the rank has {n}")
+    perm = leaves.perm
+    iperm = np.empty(n, dtype=np.int64)
+    iperm[perm] = np.arange(n)
+    identity = bool(np.array_equal(perm, np.arange(n)))
+    leaf = np.repeat(np.arange(leaves.n_leaves), leaves.sizes)
+    entry_row = np.repeat(np.arange(n), np.diff(rows.indptr))
+    col = rows.indices.astype(np.int64) - start
+    local = (col >= 0) & (col < n)
+    nonzero = rows.data != 0
+    leaf_of = leaf[iperm]
+    inside = local.copy()
+    inside[local] = leaf_of[entry_row[local]] == leaf_of[col[local]]
+    diag = local & (col == entry_row)
+    inside &= nonzero | diag
+    d_src = np.flatnonzero(inside)
+    if identity:
+        d_rows, d_cols = entry_row[d_src], col[d_src]
+    else:                                   # permute the leaf blocks by scipy's C code, then read the sources back
+        ids = sp.csr_matrix((d_src + 1.0, (iperm[entry_row[d_src]], iperm[col[d_src]])), shape=(n, n))
+        ids.sort_indices()
+        d_src = ids.data.astype(np.int64) - 1
+        d_rows, d_cols = np.repeat(np.arange(n), np.diff(ids.indptr)), ids.indices.astype(np.int64)
+    d_indptr = np.concatenate(([0], np.cumsum(np.bincount(d_rows, minlength=n))))
+    d_diag = np.flatnonzero(d_rows == d_cols)
+    if d_diag.size != n:
+        missing = np.setdiff1d(np.arange(n), d_rows[d_rows == d_cols])
+        raise ValueError(f"row {int(perm[missing[0]]) + start} has no diagonal entry; the two-level "
+                         "preconditioner needs every diagonal entry stored")
+    pos = leaf * leaves.max_size + np.arange(n) - leaves.offsets[leaf]
+    pieces = find_pieces(d_indptr, d_cols, leaf, leaves.n_leaves)
+    o_src = np.flatnonzero(~inside & nonzero & ~diag)
+    coupled = np.zeros(pieces.n_pieces, dtype=bool)
+    coupled[pieces.label[iperm[entry_row[o_src]]]] = True
+    return LeafLayout(leaves, start, perm, iperm, identity, leaf, pos, entry_row, d_indptr, d_cols, d_src, d_diag,
+                      o_src, pieces, ~coupled)

@@ -1,0 +1,133 @@
+"""Pieces of the leaves and the null space of a Neumann-type operator: one rule for every two-level back-end.
+
+A *piece* is a connected part of one leaf's graph (the leaf's rows and the nonzero entries between
+them). Every piece's normalised indicator is a coarse vector, so the constant of each connected
+component of A lies exactly in the coarse space. A component is *null* when A annihilates its
+constant, which for these matrices means that A's row sums vanish on it. Such a constant would
+make the coarse operator W^T A W singular; :func:`dropped` names the coarse vector to leave out for
+each: the first piece of the component, or, when the component is a single piece with no coupling
+out of its leaf, that piece, whose leaf block is then grounded (one diagonal entry raised) so that
+the leaf factor stays nonsingular. Everything here is numpy and knows nothing of PETSc or torch.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+NULL_TOL = 1e-10        # |row sum| <= NULL_TOL * max |a_ii| on every row of a component: A 1_c = 0
+
+
+@dataclass(frozen=True, eq=False)
+class Pieces:
+    """The pieces of a set of leaves, numbered leaf by leaf.
+
+    Attributes
+    ----------
+    label : numpy.ndarray (n,)
+        Piece of each row (rows in the leaves' order).
+    leaf : numpy.ndarray (P,)
+        Leaf of each piece.
+    count : numpy.ndarray (K,)
+        Pieces per leaf.
+    first : numpy.ndarray (K,)
+        First piece of each leaf.
+    size : numpy.ndarray (P,)
+        Rows per piece.
+    index : numpy.ndarray (n,)
+        Index of each row's piece within its leaf (0 for the leaf's first piece).
+    """
+
+    label: np.ndarray
+    leaf: np.ndarray
+    count: np.ndarray
+    first: np.ndarray
+    size: np.ndarray
+    index: np.ndarray
+
+    @property
+    def n_pieces(self) -> int:
+        """Number of pieces P."""
+        return int(self.size.size)
+
+
+def find_pieces(indptr, indices, leaf_of_row, n_leaves) -> Pieces:
+    """Connected parts of each leaf from the leaf blocks' CSR structure (rows in the leaves' order).
+
+    ``indptr``/``indices`` hold only entries between rows of the same leaf, each leaf's rows contiguous.
+    """
+    n = leaf_of_row.size
+    graph = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
+    n_pieces, label = connected_components(graph, directed=False)
+    # connected_components numbers parts by their lowest row, so pieces run leaf by leaf
+    leaf = np.zeros(n_pieces, dtype=np.int64)
+    leaf[label] = leaf_of_row
+    count = np.bincount(leaf, minlength=n_leaves)
+    first = np.concatenate(([0], np.cumsum(count)[:-1]))
+    return Pieces(label.astype(np.int64), leaf, count, first, np.bincount(label, minlength=n_pieces),
+                  label - first[leaf_of_row])
+
+
+def components(n_pieces, edges) -> tuple:
+    """Connected components of the pieces joined by ``edges`` (pairs of piece ids, couplings between leaves).
+
+    Returns (number of components, component of each piece).
+    """
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    graph = sp.csr_matrix((np.ones(len(edges), dtype=np.int8), (edges[:, 0], edges[:, 1])),
+                          shape=(n_pieces, n_pieces))
+    return connected_components(graph, directed=False)
+
+
+def null_by_rowsums(rowsum, diag, comp_of_row, n_comp, reduce_max=None) -> np.ndarray:
+    """Boolean (C,): components on which every |row sum| is at most NULL_TOL times the largest |a_ii|.
+
+    ``reduce_max`` (an elementwise maximum over MPI ranks) makes it collective.
+    """
+    worst = np.zeros(n_comp)
+    np.maximum.at(worst, comp_of_row, np.abs(rowsum))
+    top = np.array([np.abs(diag).max(initial=0.0)])
+    if reduce_max is not None:
+        worst, top = reduce_max(worst), reduce_max(top)
+    return worst <= NULL_TOL * top[0]
+
+
+def null_from_vectors(vectors, constant, comp_of_row, n_comp, reduce_max=None) -> np.ndarray:
+    """Boolean (C,): components that an attached null space touches (all of them for the constant)."""
+    if constant:
+        return np.ones(n_comp, dtype=bool)
+    touched = np.zeros(n_comp)
+    for z in vectors:
+        np.maximum.at(touched, comp_of_row, (np.abs(z) > 0).astype(float))
+    if reduce_max is not None:
+        touched = reduce_max(touched)
+    return touched > 0
+
+
+def dropped(null, comp_of_piece, isolated) -> tuple:
+    """Which pieces' coarse vectors to leave out, and which pieces to ground.
+
+    Parameters
+    ----------
+    null : numpy.ndarray of bool (C,)
+        Null components.
+    comp_of_piece : numpy.ndarray (P,)
+        Component of every piece (global numbering: the same on every rank).
+    isolated : numpy.ndarray of bool (P,)
+        Pieces without a coupling out of their leaf (each then is a whole component).
+
+    Returns
+    -------
+    drop : numpy.ndarray of bool (P,)
+        The first piece of every null component.
+    ground : numpy.ndarray of bool (P,)
+        The dropped pieces that are whole components (their leaf block is singular).
+    """
+    drop = np.zeros(comp_of_piece.size, dtype=bool)
+    pieces = np.flatnonzero(null[comp_of_piece])
+    if pieces.size:
+        _, first = np.unique(comp_of_piece[pieces], return_index=True)
+        drop[pieces[first]] = True
+    return drop, drop & isolated
