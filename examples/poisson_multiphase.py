@@ -1,10 +1,10 @@
 #!/usr/bin/env python
 """Solve one multiphase pressure-Poisson frame with PETSc, preconditioned by HTP.
 
-    python examples/poisson_multiphase.py                       # CG + HTP (options/cg_htp.opts)
+    python examples/poisson_multiphase.py                       # CG + HTPPC's default (options/cg_htp.opts)
     python examples/poisson_multiphase.py -options_file options/cg_gamg.opts
     python examples/poisson_multiphase.py -n 4096 -compare -plot results/demo.png
-    mpiexec -n 2 python examples/poisson_multiphase.py -options_file options/bjacobi_htp.opts
+    mpiexec -n 2 python examples/poisson_multiphase.py -options_file options/bjacobi_paper.opts
 
 Example options
     -n N                 unknowns (default 4096)

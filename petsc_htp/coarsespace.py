@@ -33,9 +33,9 @@ def seeds(leaf, offsets, sizes, first, count) -> np.ndarray:
     return np.asfortranarray(np.cos(np.pi * i[:, None] * j[None, :] / sizes[leaf][:, None]))
 
 
-def neumann_diagonal(diag, rowsum, insum, leaf, sizes) -> np.ndarray:
-    """S's diagonal: A's diagonal plus each row's couplings out of its leaf (``rowsum - insum``), shifted."""
-    folded = diag + rowsum - insum
+def neumann_diagonal(diag, outside, leaf, sizes) -> np.ndarray:
+    """S's diagonal: A's diagonal plus the sum of each row's couplings out of its leaf (``outside``), shifted."""
+    folded = diag + outside
     mean = np.bincount(leaf, np.abs(folded), minlength=sizes.size) / sizes
     return folded + NEUMANN_SHIFT * mean[leaf]
 
@@ -95,11 +95,17 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
         P = constants
     else:
         pos = torch.as_tensor(lay.pos)
-        Y = torch.zeros(K * L, start_vectors.shape[1], dtype=torch.float64)
-        Y[pos] = torch.as_tensor(solve(start_vectors))
-        Y = _without(Y.view(K, L, -1), constants)
-        q = Y.shape[2] - extra
-        blocks = [_orthonormal(Y[:, :, :q])]
+        c = constants.shape[2]
+        Y = torch.zeros(K * L, c + start_vectors.shape[1], dtype=torch.float64)
+        Y[pos, c:] = torch.as_tensor(solve(start_vectors))
+        Y = Y.view(K, L, -1)
+        q = Y.shape[2] - c - extra
+        if lay.pieces.n_pieces == K:            # one piece per leaf: one QR of [constant, modes] makes them orthogonal
+            Y[:, :, :c] = constants
+            blocks = [_orthonormal(Y[:, :, :c + q])[:, :, c:]]
+        else:
+            blocks = [_orthonormal(_without(Y[:, :, c:c + q], constants))]
+        Y = Y[:, :, c:]
         if extra:
             rest = _orthonormal(_without(Y[:, :, q:], blocks[0]))
             SX = torch.zeros(K * L, extra, dtype=torch.float64)

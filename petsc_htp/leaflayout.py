@@ -85,10 +85,6 @@ class LeafLayout:
         """A's local row of every value of O."""
         return self.entry_row[self.o_src]
 
-    def leaf_sums(self, values) -> np.ndarray:
-        """Per row in the leaves' order: the sum of its values of D."""
-        return np.add.reduceat(values, self.d_indptr[:-1]) if values.size else np.zeros(self.n)
-
 
 def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     """Index maps of a rank's rows ``rows`` (CSR, sorted, global columns, local rows ``start`` ...) and leaves."""

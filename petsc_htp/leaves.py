@@ -136,14 +136,30 @@ def morton_leaves(codes, leaf=128, perm=None, kind="morton", build_ms=0.0, slack
     level = np.zeros(n, dtype=np.int64)
     level[1:] = np.frexp((codes[1:] ^ codes[:-1]).astype(np.float64))[1]      # highest differing bit + 1
     width = int(slack * leaf)
-    cuts = [0]
-    while n - cuts[-1] > leaf + width:
-        target = cuts[-1] + leaf
-        lo, hi = target - width, min(target + width, n - 1)
-        best = np.flatnonzero(level[lo:hi + 1] == level[lo:hi + 1].max()) + lo
-        cuts.append(int(best[np.argmin(np.abs(best - target))]))
+    cuts = _block_cuts(level, leaf, width)
+    if cuts is None:
+        cuts, level = [0], level.tolist()
+        while n - cuts[-1] > leaf + width:
+            target = cuts[-1] + leaf
+            lo, hi = target - width, min(target + width, n - 1)
+            top = max(level[lo:hi + 1])
+            cuts.append(min((i for i in range(lo, hi + 1) if level[i] == top), key=lambda i: abs(i - target)))
     perm = np.arange(n, dtype=np.int64) if perm is None else perm
     return Leaves(perm, np.array(cuts + [n], dtype=np.int64), kind, build_ms)
+
+
+def _block_cuts(level, leaf, width):
+    """The cuts of :func:`morton_leaves` without its loop where they are every ``leaf`` rows (a power of two):
+    the boundaries of the ``leaf``-cell quadtree blocks, found at once; None where the blocks are uneven."""
+    if leaf & (leaf - 1):
+        return None
+    bounds = np.flatnonzero(level >= leaf.bit_length())
+    n = level.size
+    bounds = bounds[bounds <= max(n - leaf - width - 1, 0) + leaf]      # the loop stops leaf + width before n
+    if bounds.size and (bounds[0] != leaf or np.any(np.diff(bounds) != leaf)):
+        return None
+    cuts = [0] + bounds.tolist()
+    return cuts if n - cuts[-1] <= leaf + width else None
 
 
 def _metis_graph(A):

@@ -47,15 +47,20 @@ def morton_code(ix, iy):
 
 
 def _lattice_indices(x, bits):
-    """Integer indices ``(x - min) / spacing`` when ``x`` lies on a uniform lattice, else None."""
-    u = np.unique(x)
-    if u.size < 2:
-        return np.zeros(x.size, dtype=np.int64)
-    k = (x - u[0]) / np.diff(u).min()
-    q = np.rint(k)
-    if np.abs(k - q).max() > 1e-6 or q.max() >= 2**bits:
-        return None
-    return q.astype(np.int64)
+    """Integer indices ``(x - min) / spacing`` when ``x`` lies on a uniform lattice, else None.
+
+    The spacing comes from a strided sample's distinct values and is checked on every point (all of
+    them give it when the sample's spacing is a multiple of the true one).
+    """
+    for u in (np.unique(x[:: max(1, x.size // 4096)]), None):
+        u = np.unique(x) if u is None else u
+        if u.size < 2:
+            continue
+        k = (x - x.min()) / np.diff(u).min()
+        q = np.rint(k)
+        if np.abs(k - q).max() <= 1e-6:
+            return q.astype(np.int64) if q.max() < 2**bits else None
+    return np.zeros(x.size, dtype=np.int64) if np.all(x == x[0]) else None
 
 
 def quantized_morton_codes(coords, bits=16):

@@ -94,6 +94,12 @@ def null_by_rowsums(rowsum, diag, comp_of_row, n_comp, reduce_max=None) -> np.nd
     return worst <= NULL_TOL * top[0]
 
 
+def null_regions(A, regions) -> np.ndarray:
+    """Boolean per region of a scipy matrix A: its row sums vanish there, so its constant is a null vector."""
+    diag = A.diagonal()
+    return null_by_rowsums(np.asarray(A.sum(axis=1)).ravel(), diag, regions, regions.max(initial=0) + 1)
+
+
 def null_from_vectors(vectors, constant, comp_of_row, n_comp, reduce_max=None) -> np.ndarray:
     """Boolean (C,): components that an attached null space touches (all of them for the constant)."""
     if constant:

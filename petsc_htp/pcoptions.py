@@ -14,7 +14,7 @@ FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
-                  "coarse_tol")
+                  "coarse_tol", "overlap")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
@@ -34,6 +34,8 @@ HELP = {
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "form": "twolevel: auto (deflated, balanced under a KSP that needs a symmetric M), deflated (one coarse solve "
             "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
+    "overlap": "twolevel: 0 for exact leaf solves, k > 0 for additive Schwarz on leaves grown by k layers of "
+               "neighbours within each rank (the forms then go through A W)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
@@ -47,17 +49,18 @@ HELP = {
 class HTPOptions:
     """The ``-htp_*`` options of one HTPPC (defaults as shown by ``-help``)."""
 
-    variant: str = "paper"
+    variant: str = "twolevel"
     checkpoint: str = ""
     device: str = "auto"
     ordering: str = "auto"
-    leaf: int = 128
+    leaf: int = 32
     coarse: str = "eig"
-    coarse_rank: int = 4
+    coarse_rank: int = 2
     coarse_checkpoint: str = ""
-    coarse_tol: float = 0.01
+    coarse_tol: float = 0.0
     coarse_space_every: int = 1
     form: str = "auto"
+    overlap: int = 0
     shift: float = 0.0
     spd_guard: bool = True
     threads: int = 1
@@ -85,7 +88,8 @@ class HTPOptions:
         for name in ("shift", "coarse_tol"):
             if not math.isfinite(getattr(self, name)) or getattr(self, name) < 0:
                 raise ValueError(f"{opt}{name} must be a finite non-negative number, got {getattr(self, name)}")
-        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1)):
+        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1),
+                          ("overlap", 0)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
         if self.variant == "paper" and self.ordering in ("metis", "graph"):

@@ -9,6 +9,8 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 from scipy.sparse.csgraph import connected_components
 
+from .nullspace import null_regions
+
 __all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace"]
 
 COORDS_ATTR = "petsc_htp_coords"
@@ -116,7 +118,7 @@ def _ownership_range(n, size, rank):
     return start, start + base + (rank < extra)
 
 
-def region_nullspace(mat, regions):
+def region_nullspace(mat, regions, null=None):
     """Null space of a Neumann operator: the constant, or one unit indicator per connected region.
 
     Parameters
@@ -125,17 +127,21 @@ def region_nullspace(mat, regions):
         Gives the communicator and this rank's rows.
     regions : numpy.ndarray of int, shape (N,)
         Region (0 .. R-1) of every global row.
+    null : numpy.ndarray of bool, shape (R,), optional
+        The regions whose constant is a null vector (default: all of them).
 
     Returns
     -------
     petsc4py.PETSc.NullSpace
     """
     comm = mat.getComm()
-    if regions.max(initial=0) == 0:
+    count = regions.max(initial=0) + 1
+    null = np.ones(count, dtype=bool) if null is None else np.asarray(null, dtype=bool)
+    if count == 1 and null[0]:
         return PETSc.NullSpace().create(constant=True, comm=comm)
     start, end = mat.getOwnershipRange()
     vectors = []
-    for region in range(regions.max() + 1):
+    for region in np.flatnonzero(null):
         inside = regions == region
         vec = mat.createVecLeft()
         vec.setArray(inside[start:end] / math.sqrt(np.count_nonzero(inside)))
@@ -144,7 +150,8 @@ def region_nullspace(mat, regions):
 
 
 def frame_mat(frame, comm=None):
-    """Distributed PETSc AIJ copy of a frame's ``A`` with its null space (one constant per connected region).
+    """Distributed PETSc AIJ copy of a frame's ``A`` with its null space (one constant per connected region
+    whose row sums vanish; none for a nonsingular A).
 
     Parameters
     ----------
@@ -175,9 +182,13 @@ def frame_mat(frame, comm=None):
     mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
     mat.setValuesCSR(indptr, indices, local.data)
     mat.assemble()
-    mat.setNullSpace(region_nullspace(mat, connected_components(frame.A, directed=False)[1]))
+    regions = connected_components(frame.A, directed=False)[1]
+    null = null_regions(frame.A, regions)
+    if null.any():
+        mat.setNullSpace(region_nullspace(mat, regions, null))
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     return mat
+
 
 
 def frame_vec(frame, mat):

@@ -54,9 +54,11 @@ class PressureSolver:
         Connected fluid region of each row (one null vector each).
     prefix : str
         Options prefix of the method.
+    warm : bool
+        Start every solve from the previous solution (else from zero).
     """
 
-    def __init__(self, A, regions, prefix=""):
+    def __init__(self, A, regions, prefix="", warm=True):
         self.mat = create_matrix(A, regions)
         self.indptr, self.indices = A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType)
         set_blocks(prefix, A.shape[0])
@@ -64,7 +66,8 @@ class PressureSolver:
         self.ksp.setOptionsPrefix(prefix)
         self.ksp.setOperators(self.mat, self.mat)
         self.ksp.setFromOptions()
-        self.ksp.setInitialGuessNonzero(True)          # the previous frame's pressure
+        self.warm = warm
+        self.ksp.setInitialGuessNonzero(warm)          # the previous frame's pressure
         self.max_it = self.ksp.getTolerances()[3]
         self.x, self.b = self.mat.createVecs()
         self.x.set(0.0)
@@ -92,6 +95,8 @@ class PressureSolver:
             ``pc_setups`` (PCSetUp events) and ``numeric_setups`` (python PCs, else None).
         """
         t0 = time.perf_counter()
+        if not self.warm:
+            self.x.set(0.0)
         self.mat.setValuesCSR(self.indptr, self.indices, A.data)
         self.mat.assemble()
         attach(self.mat, coords=coords, density=coefficient)

@@ -28,17 +28,18 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
+from scipy.sparse.csgraph import connected_components
 
 from . import coarsespace, nullspace
 from .checks import rayleigh_reason
 from .leaflayout import layout
+from .leafsolvers import LEAF_DEFAULTS, ExactLeaves, OverlappingLeaves, seqaij
 from .leaves import choose_leaves
 
 SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
 COARSE_TEXT = {"const": "the constant of each piece of each leaf",
                "eig": "piece constants and one inverse-iteration step of each leaf's Neumann matrix from smooth seeds",
                "learned": "piece constants and the coarse network's vectors refined by the same step as eig"}
-LEAF_DEFAULTS = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
 COARSE_DEFAULTS = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_DEFAULTS_MPI = {"pc_type": "redundant", "redundant_pc_type": "lu",
                        "redundant_pc_factor_mat_ordering_type": "qmd", "redundant_pc_factor_shift_type": "nonzero"}
@@ -62,6 +63,8 @@ class Config:
         With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.coarsespace`).
     form : str
         auto (deflated, or balanced under a KSP that needs a symmetric M), deflated or balanced.
+    overlap : int
+        0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.leafsolvers`).
     """
 
     leaf: int = 128
@@ -70,6 +73,7 @@ class Config:
     rank: int = 4
     tol: float = 0.0
     form: str = "auto"
+    overlap: int = 0
 
 
 class _Collective:
@@ -101,16 +105,11 @@ class _Collective:
         return np.concatenate(self.mpi.allgather(values)).reshape(-1, values.shape[1])
 
 
-def _seqaij(indptr, indices, values, n, m=None) -> PETSc.Mat:
-    """A SeqAIJ on COMM_SELF that uses the given CSR arrays in place (new values: change them, stateIncrease)."""
-    return PETSc.Mat().createAIJWithArrays((n, n if m is None else m), (indptr, indices, values),
-                                           comm=PETSc.COMM_SELF)
-
-
-def _coo_aij(comm, rows, cols, shape, local) -> PETSc.Mat:
+def _coo_aij(comm, rows, cols, shape, local, col_block=1) -> PETSc.Mat:
     """An AIJ on ``comm`` with the COO pattern (global ``rows``, ``cols``); values come by ``setValuesCOO``."""
     mat = PETSc.Mat().create(comm=comm)
     mat.setSizes(((local[0], shape[0]), (local[1], shape[1])))
+    mat.setBlockSizes(1, col_block)
     mat.setType(PETSc.Mat.Type.AIJ)
     mat.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
     return mat
@@ -189,6 +188,15 @@ class TwoLevelPC:
         self.piece_offset = coll.exscan(pc.n_pieces)
         self.n_pieces = coll.sum(pc.n_pieces)
         row_piece = pc.label[lay.iperm] + self.piece_offset          # global piece of each of A's local rows
+        self.isolated = np.zeros(self.n_pieces, dtype=bool)
+        self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
+        if coll.size == 1:                                            # A's own components, read off its rows
+            graph = rows if np.all(rows.data != 0) else rows.multiply(rows != 0).tocsr()
+            self.n_comp, labels = connected_components(graph, directed=False)
+            self.comp_of_row = labels
+            self.comp_of_piece = np.zeros(self.n_pieces, dtype=np.int64)
+            self.comp_of_piece[row_piece] = labels
+            return
         o_rows, o_cols = lay.o_rows, rows.indices[lay.o_src].astype(np.int64)
         start, n = lay.start, lay.n
         local = (o_cols >= start) & (o_cols < start + n)
@@ -196,11 +204,10 @@ class TwoLevelPC:
         other[local] = row_piece[o_cols[local] - start]
         if not local.all():
             other[~local] = self._ghost_pieces(row_piece, o_cols[~local])
-        edges = np.unique(np.stack([row_piece[o_rows], other], 1), axis=0)
+        key = np.unique(row_piece[o_rows] * self.n_pieces + other)
+        edges = np.stack([key // self.n_pieces, key % self.n_pieces], 1)
         self.n_comp, self.comp_of_piece = nullspace.components(self.n_pieces, coll.gather_rows(edges))
         self.comp_of_row = self.comp_of_piece[row_piece]              # of A's local rows
-        self.isolated = np.zeros(self.n_pieces, dtype=bool)
-        self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
         self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
 
     def _ghost_pieces(self, row_piece, cols) -> np.ndarray:
@@ -225,6 +232,8 @@ class TwoLevelPC:
         self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
         lead = self.q + self.extra
         self.ncols = lead + pc.count
+        sizes = self.coll.max_array(np.array([self.ncols.max(), -self.ncols.min()]))
+        self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
         self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
@@ -246,29 +255,27 @@ class TwoLevelPC:
         """Every matrix with its final pattern, the solvers and the work vectors."""
         lay, comm = self.lay, self.comm
         n, N = lay.n, self.mat.getSize()[0]
-        it = PETSc.IntType
-        self.d_indptr, self.d_indices = lay.d_indptr.astype(it), lay.d_indices.astype(it)
         self.d_values = np.zeros(lay.d_src.size)
-        self.D = _seqaij(self.d_indptr, self.d_indices, self.d_values, n)
-        self.B = _pc(PETSc.COMM_SELF, self.D, prefix + "leaf_", LEAF_DEFAULTS)
+        factor = lambda m: _pc(PETSc.COMM_SELF, m, prefix + "leaf_", LEAF_DEFAULTS)     # noqa: E731
+        if self.cfg.overlap:
+            self.leafsolver = OverlappingLeaves(lay, rows, self.cfg.overlap, factor)
+        else:
+            self.leafsolver = ExactLeaves(lay, self.d_values, factor, lay.identity and self.coll.size == 1)
         self.s_values, self.S, self.S_factor = None, None, None
         if self.q + self.extra:
             self.s_values = np.zeros(lay.d_src.size)
-            self.S = _seqaij(self.d_indptr, self.d_indices, self.s_values, n)
-            self.S_factor = _pc(PETSc.COMM_SELF, self.S, prefix + "leaf_", LEAF_DEFAULTS)
+            self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, n)
+            self.S_factor = factor(self.S)
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(n, n))
         self.o_values = np.zeros(lay.o_src.size)
+        self.o_perm_rows = lay.iperm[lay.o_rows]                     # O's rows in the leaves' order
         self.O = _coo_aij(comm, lay.o_rows + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
         self.w_values = np.zeros(self.w_src.size)
-        self.W = _coo_aij(comm, self.w_rows, self.w_cols, (N, self.m), (n, int(self.ncols.sum())))
-        self.C = self.E = self.F = None
+        self.W = _coo_aij(comm, self.w_rows, self.w_cols, (N, self.m), (n, int(self.ncols.sum())), self.col_block)
+        self.C = self.E = self.F = self.AW = self.Eb = None
         self.coarse_prefix = prefix + "cs_"
         self.coarse = None
         self.v, self.t = self.mat.createVecLeft(), self.mat.createVecLeft()
-        self.xp, self.vp = np.zeros(n), np.zeros(n)
-        self.xs = PETSc.Vec().createWithArray(self.xp, comm=PETSc.COMM_SELF)
-        self.vs = PETSc.Vec().createWithArray(self.vp, comm=PETSc.COMM_SELF)
-        self.direct = lay.identity and self.coll.size == 1            # B works on the KSP's vectors
 
     # ------------------------------------------------------------------ numeric
     def numeric(self, rows, density=None, keep_space=False):
@@ -276,20 +283,18 @@ class TwoLevelPC:
         lay, T = self.lay, {}
         data = rows.data
         t0 = time.perf_counter()
-        rowsum = np.bincount(lay.entry_row, data, minlength=lay.n)
-        null, drop, ground = self._null(rowsum, data)
+        np.take(data, lay.o_src, out=self.o_values)
+        self.O.setValuesCOO(self.o_values)
+        null, drop, ground = self._null(data)
         np.take(data, lay.d_src, out=self.d_values)
         if ground.any():
             rows_g = self._first_rows(ground)
             self.d_values[lay.d_diag[rows_g]] += np.abs(self.d_values[lay.d_diag[rows_g]]).max(initial=1.0)
-        self.D.stateIncrease()
-        self.B.setUp()
+        self.leafsolver.numeric(data)
         T["leaf"] = _ms(t0)
         t0 = time.perf_counter()
-        np.take(data, lay.o_src, out=self.o_values)
-        self.O.setValuesCOO(self.o_values)
         if not (keep_space and self.kept is not None):
-            P, self.kept = self._space(rows, rowsum, density)
+            P, self.kept = self._space(rows, density)
             np.take(P.numpy().reshape(-1), self.w_src, out=self.w_values)
             self.age = 0
         else:
@@ -311,7 +316,7 @@ class TwoLevelPC:
         self.times, self.null_components = T, int(null.sum())
         self.numeric_count += 1
 
-    def _null(self, rowsum, data) -> tuple:
+    def _null(self, data) -> tuple:
         """Null components (attached MatNullSpace, else A's row sums), and the pieces to drop and to ground."""
         nsp = self.mat.getNullSpace()
         reduce = self.coll.max_array if self.coll.size > 1 else None
@@ -320,6 +325,7 @@ class TwoLevelPC:
                                                self.comp_of_row, self.n_comp, reduce)
         else:
             diag = data[self.lay.d_src[self.lay.d_diag]]
+            rowsum = np.bincount(self.lay.entry_row, data, minlength=self.lay.n)
             null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp, reduce)
         drop, ground = nullspace.dropped(null, self.comp_of_piece, self.isolated)
         return null, drop, ground[self.piece_offset:self.piece_offset + self.lay.pieces.n_pieces]
@@ -331,13 +337,13 @@ class TwoLevelPC:
         first[label[::-1]] = np.arange(label.size)[::-1]
         return first[pieces_mask]
 
-    def _space(self, rows, rowsum, density) -> tuple:
+    def _space(self, rows, density) -> tuple:
         """The coarse basis (padded) and the vectors kept per leaf."""
         lay = self.lay
         if not self.q + self.extra:
             return coarsespace.basis(lay, self.constants)
-        diag = coarsespace.neumann_diagonal(self.d_values[lay.d_diag], rowsum[lay.perm],
-                                            lay.leaf_sums(self.d_values), lay.leaf, lay.leaves.sizes)
+        outside = np.bincount(self.o_perm_rows, self.o_values, minlength=lay.n)
+        diag = coarsespace.neumann_diagonal(self.d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
         np.copyto(self.s_values, self.d_values)
         self.s_values[lay.d_diag] = diag
         self.S.stateIncrease()
@@ -384,12 +390,14 @@ class TwoLevelPC:
         """C = O W, E = W^T A W (lifted on unused columns), F = W^T C for the balanced form; symbolic once."""
         first = self.C is None
         self.C = self.O.matMult(self.W, result=self.C)
+        if not self.leafsolver.exact:
+            self.AW = self.mat.matMult(self.W, result=self.AW)
         if first and self.coll.size == 1:           # PETSc's 'rap' PtAP is about 1.5x faster here than its default
             with _scoped(self.mat.getOptionsPrefix() or "", {"matptap_via": "rap"}):
                 self.E = self.mat.ptap(self.W)
         else:
             self.E = self.mat.ptap(self.W, result=self.E)
-        if self.F is not None or self.form() == "balanced":
+        if self.F is not None or (self.form() == "balanced" and self.leafsolver.exact):
             self.F = self.W.transposeMatMult(self.C, result=self.F)
         lift = self.E.createVecLeft() if first else self._lift
         diag = self.E.getDiagonal()
@@ -399,9 +407,13 @@ class TwoLevelPC:
         self.E.setDiagonal(lift, addv=PETSc.InsertMode.ADD_VALUES)
         diag.destroy()
         self._lift = lift
+        if self.col_block > 1:                      # block LU kernels: a third faster to factor and to apply
+            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
-            defaults = COARSE_DEFAULTS if self.coll.size == 1 else COARSE_DEFAULTS_MPI
-            self.coarse = _pc(self.comm, self.E, self.coarse_prefix, defaults)
+            defaults = dict(COARSE_DEFAULTS if self.coll.size == 1 else COARSE_DEFAULTS_MPI)
+            if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
+                defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
+            self.coarse = _pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
             self.g, self.c, self.c2 = (self.E.createVecLeft() for _ in range(3))
 
     # ------------------------------------------------------------------ apply
@@ -412,35 +424,42 @@ class TwoLevelPC:
             return self._forced or self.cfg.form
         return "balanced" if ksp_type in SYMMETRIC_KSPS else getattr(self, "_auto", "deflated")
 
-    def _leaf_solve(self, x, v):
-        """v = B x (x, v: Vecs laid out like A's rows)."""
-        if self.direct:
-            self.B.apply(x, v)
-            return
-        np.take(x.array_r, self.lay.perm, out=self.xp)
-        self.B.apply(self.xs, self.vs)
-        np.take(self.vp, self.lay.iperm, out=v.array_w)
-
     def mult(self, x, y):
         """y = M x in the form in use."""
+        B = self.leafsolver
         if self.form() == "deflated":
-            self._leaf_solve(x, self.v)                    # v = B x
-            self.C.multTranspose(self.v, self.g)           # g = C^T v = (A W)^T B x - W^T x
+            B.apply(x, self.v)                                 # v = B x
+            if B.exact:
+                self.C.multTranspose(self.v, self.g)           # g = C^T v = (A W)^T B x - W^T x
+                self.g.scale(-1.0)
+            else:
+                self.W.multTranspose(x, self.g)
+                self.g.scale(-1.0)
+                self.AW.multTransposeAdd(self.v, self.g, self.g)
+                self.g.scale(-1.0)                             # g = W^T x - (A W)^T B x
             self.coarse.apply(self.g, self.c)
-            self.c.scale(-1.0)
-            self.W.multAdd(self.c, self.v, y)              # y = v - W E^-1 C^T v
+            self.W.multAdd(self.c, self.v, y)                  # y = v + W E^-1 (W^T x - (A W)^T v)
             return
         self.W.multTranspose(x, self.g)
-        self.coarse.apply(self.g, self.c)                  # c1 = E^-1 W^T x
+        self.coarse.apply(self.g, self.c)                      # c1 = E^-1 W^T x
+        if not B.exact:
+            self.AW.mult(self.c, self.t)
+            self.t.aypx(-1.0, x)                               # u = x - A W c1
+            B.apply(self.t, self.v)                            # v = B u
+            self.AW.multTranspose(self.v, self.g)
+            self.coarse.apply(self.g, self.c2)
+            self.c2.aypx(-1.0, self.c)
+            self.W.multAdd(self.c2, self.v, y)                 # y = v + W (c1 - E^-1 (A W)^T v)
+            return
         self.C.mult(self.c, self.t)
-        self.t.aypx(-1.0, x)                               # x - C c1
-        self._leaf_solve(self.t, self.v)                   # s = B (x - C c1)
+        self.t.aypx(-1.0, x)                                   # x - C c1
+        B.apply(self.t, self.v)                                # s = B (x - C c1)
         self.C.multTranspose(self.v, self.g)
         self.F.mult(self.c, self.c2)
-        self.g.axpy(-1.0, self.c2)                         # C^T s - W^T C c1
+        self.g.axpy(-1.0, self.c2)                             # C^T s - W^T C c1
         self.coarse.apply(self.g, self.c2)
         self.c2.scale(-1.0)
-        self.W.multAdd(self.c2, self.v, y)                 # y = s - W E^-1 (C^T s - W^T C c1)
+        self.W.multAdd(self.c2, self.v, y)                     # y = s - W E^-1 (C^T s - W^T C c1)
 
     def presolve(self, ksp, b, x, stale=False):
         """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
@@ -449,8 +468,8 @@ class TwoLevelPC:
         kind = ksp.getType()
         if self.cfg.form == "auto":
             self._auto = "balanced" if kind in SYMMETRIC_KSPS or stale else "deflated"
-            if self._auto == "balanced" and self.F is None:
-                self.F = self.W.transposeMatMult(self.C)
+            if self._auto == "balanced":
+                self._need_F()
         if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:
             return None
         nonzero = ksp.getInitialGuessNonzero()
@@ -466,12 +485,17 @@ class TwoLevelPC:
         ksp.setInitialGuessNonzero(True)
         return nonzero
 
+    def _need_F(self):
+        """F = W^T C, which the balanced form with exact leaves needs (made on first use, then kept up to date)."""
+        if self.F is None and self.leafsolver.exact:
+            self.F = self.W.transposeMatMult(self.C)
+
     # ------------------------------------------------------------------ checks and views
     def check(self, probes=0) -> str:
         """Empty when every factorisation succeeded, the coarse space is finite and ``probes`` random Rayleigh
         quotients of the balanced M are positive, else why not (collective)."""
         bad = []
-        for name, pc in (("leaf", self.B), ("Neumann", self.S_factor), ("coarse", self.coarse)):
+        for name, pc in (("leaf", self.leafsolver.pc), ("Neumann", self.S_factor), ("coarse", self.coarse)):
             if pc is not None and pc.getFailedReason() != PETSc.PC.FailedReason.NOERROR:
                 bad.append(f"{name} factorisation failed ({pc.getFailedReason()})")
         if not np.all(np.isfinite(self.w_values)):
@@ -484,8 +508,7 @@ class TwoLevelPC:
 
     def _min_rayleigh(self, probes) -> float:
         """Smallest x^T M x / x^T x of the balanced (symmetric) M over random x."""
-        if self.F is None:
-            self.F = self.W.transposeMatMult(self.C)
+        self._need_F()
         x, y = self.mat.createVecs()
         rng = PETSc.Random().create(self.comm)
         self._forced = "balanced"
@@ -501,13 +524,47 @@ class TwoLevelPC:
                 obj.destroy()
         return float(np.min(quotients))
 
+    def apply_costs(self, reps=20) -> dict:
+        """Milliseconds per call of each part of an application in the form in use, and of one MatMult of A
+        (``matmult``), timed back to back over ``reps`` calls (collective)."""
+        x, y = self.mat.createVecs()
+        x.setRandom()
+        exact, deflated = self.leafsolver.exact, self.form() == "deflated"
+        parts = {"matmult": lambda: self.mat.mult(x, y), "leaf solve": lambda: self.leafsolver.apply(x, self.v),
+                 "coarse solve": lambda: self.coarse.apply(self.g, self.c),
+                 "thin products": lambda: (self.C.multTranspose(self.v, self.g) if exact and deflated else
+                                           self._thin_balanced(x, exact, deflated), self.W.multAdd(self.c, self.v, y)),
+                 "apply": lambda: self.mult(x, y)}
+        out = {}
+        for name, call in parts.items():
+            call()
+            t0 = time.perf_counter()
+            for _ in range(reps):
+                call()
+            out[name] = 1e3 * (time.perf_counter() - t0) / reps
+        if not deflated:
+            out["coarse solve"] *= 2
+        x.destroy()
+        y.destroy()
+        return out
+
+    def _thin_balanced(self, x, exact, deflated):
+        """The thin products of an application other than the exact deflated one, but W's (for timing)."""
+        self.W.multTranspose(x, self.g)
+        other = self.C if exact else self.AW
+        if not deflated:
+            other.mult(self.c, self.t)
+        other.multTranspose(self.v, self.g)
+        if exact and not deflated:
+            self.F.mult(self.c, self.c2)
+
     @property
     def nbytes(self) -> int:
         """Bytes held on this rank: D and its factor, W, C, the coarse operator and its factor (8 bytes a value)."""
-        mats = [self.D, self.W, self.C, self.E, self.B.getFactorMatrix()] + ([self.F] if self.F is not None else [])
+        mats = [m for m in (self.W, self.C, self.E, self.F, self.AW) if m is not None]
         if self.S is not None:
             mats += [self.S, self.S_factor.getFactorMatrix()]
-        held = sum(m.getInfo()["nz_used"] for m in mats)
+        held = sum(m.getInfo()["nz_used"] for m in mats) + self.leafsolver.nnz()
         if self.coarse.getType() != "redundant":
             held += self.coarse.getFactorMatrix().getInfo()["nz_used"]
         return int(8 * held)
@@ -521,8 +578,7 @@ class TwoLevelPC:
              else f"{kept.min()} per leaf")
         n = self.mat.getSize()[0]
         return [f"leaves: {lv.kind}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), sizes "
-                f"{lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces; exact solves by one factor of the leaf "
-                f"blocks per rank ({self.B.getType()})",
+                f"{lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces; {self.leafsolver.describe()}",
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
                 + (f" (up to {self.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if self.extra else "")
@@ -538,8 +594,9 @@ class TwoLevelPC:
     def destroy(self):
         """Free every PETSc object."""
         self._free_dense()
-        for obj in (self.D, self.B, self.S, self.S_factor, self.O, self.W, self.C, self.E, self.F, self.coarse,
-                    self.v, self.t, self.xs, self.vs, getattr(self, "_lift", None), getattr(self, "g", None),
+        self.leafsolver.destroy()
+        for obj in (self.S, self.S_factor, self.O, self.W, self.C, self.E, self.Eb, self.F, self.AW, self.coarse,
+                    self.v, self.t, getattr(self, "_lift", None), getattr(self, "g", None),
                     getattr(self, "c", None), getattr(self, "c2", None)):
             if obj is not None:
                 obj.destroy()

@@ -21,8 +21,8 @@ from petsc_htp.bench.studies.stability import STRESS, boundary, natural_order, o
 from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
 from petsc_htp.scenes import make_frame  # noqa: E402
 
-QUICK_PNGS = ("table4.png", "scaling.png", "curves_n256.png", "curves_n512.png", "curves_summary.png",
-              "stability.png")
+QUICK_PNGS = ("table4.png", "sequence.png", "scaling.png", "curves_n256.png", "curves_n512.png",
+              "curves_summary.png", "stability.png")
 CLASSICAL = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "pyamg")
 
 
@@ -63,14 +63,14 @@ def by_method(rows):
 
 @pytest.mark.slow
 def test_quick_run_writes_every_artefact(quick):
-    for study in ("table", "curves", "stability"):
+    for study in ("table", "sequence", "curves", "stability"):
         assert rows_of(quick, study), study
     for name in QUICK_PNGS:
         data = (quick / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 2000, name
     report = (quick / "report.md").read_text()
-    for heading in ("## 1. Time per frame", "## 2. Speed against accuracy", "## 3. Time against N",
-                    "## 4. Stability map"):
+    for heading in ("## 1. Time per frame", "## Sequence mode", "## 2. Speed against accuracy",
+                    "## 3. Time against N", "## 4. Stability map"):
         assert heading in report
     assert "## 5." not in report and "## 8." not in report
     for name in QUICK_PNGS:
@@ -79,7 +79,7 @@ def test_quick_run_writes_every_artefact(quick):
     assert meta["quick"] and meta["methods"] == list(DEFAULT_METHODS)
     assert meta["machine"]["cpu"] and meta["date"] and meta["versions"]["PETSc"].startswith("3.")
     assert meta["threads"]["torch"] == 1
-    assert set(meta["study_s"]) == {"table", "curves", "scaling", "stability"}
+    assert set(meta["study_s"]) == {"table", "sequence", "curves", "scaling", "stability"}
     assert not list(quick.glob(".*.tmp"))
 
 
@@ -101,7 +101,7 @@ def test_quick_table_rows_measure_every_method(quick):
     assert {r["pc"] for r in methods["cg_bjacobi"]} == {"bjacobi"}
     assert all(r["ok"] == (r["failure"] is None) for r in rows)
     none = {(r["n"], r["seed"]): r["iterations"] for r in methods["cg_none"]}
-    for r in methods["cg_htp"]:       # the tiny untrained network starts out close to Jacobi
+    for r in methods["cg_paper"]:       # the tiny untrained network starts out close to Jacobi
         assert r["ok"] and r["reason"].startswith("CONVERGED") and r["relres_proj"] <= 1e-7, r
         assert r["inference_ms"] > 0 and r["pc"] == "python"
         assert r["iterations"] < none[(r["n"], r["seed"])]
@@ -426,13 +426,13 @@ def test_model_card_lists_training_stages_oldest_first():
 
 def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
     out = tmp_path / "sim"
-    argv = ["--quick", "--studies", "simulation", "--methods", "cg_jacobi", "cg_htp", "cg_twolevel_const",
+    argv = ["--quick", "--studies", "simulation", "--methods", "cg_jacobi", "cg_paper", "cg_twolevel_const",
             "--out", str(out), *env["common"]]
     assert main(argv) == 0
     rows = rows_of(out, "simulation")
     sim = [r for r in rows if r["kind"] == "simulation"]
     runs = {(r["method"], r["reuse"], r["keep"]) for r in sim}
-    assert runs == {("cg_jacobi", 0, 0), ("cg_htp", 0, 0), ("cg_htp", 2, 0), ("cg_twolevel_const", 0, 0),
+    assert runs == {("cg_jacobi", 0, 0), ("cg_paper", 0, 0), ("cg_paper", 2, 0), ("cg_twolevel_const", 0, 0),
                     ("cg_twolevel_const", 2, 0), ("cg_twolevel_const", 0, 2)}
     for method, reuse, keep in runs:
         got = [r for r in sim if (r["method"], r["reuse"], r["keep"]) == (method, reuse, keep)]
@@ -442,7 +442,7 @@ def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
             assert [r["numeric_setups"] for r in got] == [int(r["rebuilt"]) for r in got]
     assert "cg_twolevel_const keep W 2" in (out / "report.md").read_text()
     gen = [r for r in rows if r["kind"] == "generator"]
-    assert {r["method"] for r in gen} == {"cg_jacobi", "cg_htp", "cg_twolevel_const"}
+    assert {r["method"] for r in gen} == {"cg_jacobi", "cg_paper", "cg_twolevel_const"}
     assert all(r["n"] == 32 * 32 and r["ok"] for r in gen)
     report = (out / "report.md").read_text()
     assert "## 9. Simulation" in report and "](simulation.png)" in report
@@ -458,11 +458,12 @@ def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
 
 
 def test_htp_variants_are_found_from_the_options():
-    htp = {"cg_htp", "cg_twolevel_const", "cg_twolevel_eig", "gmres_htp", "gmres_twolevel", "bjacobi_htp"}
+    htp = {"cg_htp", "cg_paper", "cg_twolevel_const", "cg_twolevel_eig", "gmres_paper", "gmres_twolevel",
+           "bjacobi_paper"}
     for name in htp | {"cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg"}:
         assert is_htp(resolve_method(name)) == (name in htp), name
     assert not is_htp(resolve_method("pyamg"))
-    twolevel = {"cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned", "gmres_twolevel"}
+    twolevel = {"cg_htp", "cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned", "gmres_twolevel"}
     for name in htp | twolevel | {"cg_icc", "cg_gamg"}:
         assert is_twolevel(resolve_method(name)) == (name in twolevel), name
 

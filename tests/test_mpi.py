@@ -23,8 +23,8 @@ def mpirun(*args, n=2, timeout=300):
     return out.returncode, out.stdout + out.stderr
 
 
-def test_bjacobi_htp_on_two_ranks(tiny_ckpt):
-    code, out = mpirun("-options_file", "options/bjacobi_htp.opts", "-n", 2048,
+def test_bjacobi_paper_on_two_ranks(tiny_ckpt):
+    code, out = mpirun("-options_file", "options/bjacobi_paper.opts", "-n", 2048,
                        "-sub_htp_checkpoint", tiny_ckpt, "-ksp_view")
     assert code == 0, out
     assert "ranks=2" in out
@@ -39,7 +39,7 @@ def test_bjacobi_htp_on_two_ranks(tiny_ckpt):
 
 
 def test_parallel_matrix_without_bjacobi_is_a_clear_error(tiny_ckpt):
-    code, out = mpirun("-options_file", "options/cg_htp.opts", "-n", 1024, "-htp_checkpoint", tiny_ckpt)
+    code, out = mpirun("-options_file", "options/cg_paper.opts", "-n", 1024, "-htp_checkpoint", tiny_ckpt)
     assert code != 0
     assert "-pc_type bjacobi -sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC" in out
 

@@ -30,7 +30,7 @@ def field(text, name):
 
 def test_expected_method_files_exist():
     assert set(METHODS) >= {"cg_none", "cg_jacobi", "cg_icc", "cg_gamg", "cg_bjacobi",
-                            "cg_htp", "gmres_htp", "bjacobi_htp"}
+                            "cg_htp", "cg_paper", "gmres_paper", "bjacobi_paper"}
     for stem in METHODS:
         text = (ROOT / "options" / f"{stem}.opts").read_text()
         assert text.startswith("#"), f"{stem}.opts has no header comment"

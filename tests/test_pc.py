@@ -88,8 +88,9 @@ def make_ksp(A, prefix):
 
 
 def htp_opts(ckpt, ksp="cg", **extra):
+    """Options of HTPPC's paper variant (the network in ``ckpt``)."""
     base = dict(ksp_type=ksp, ksp_rtol=1e-8, ksp_norm_type="unpreconditioned", ksp_max_it=5000,
-                pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt),
+                pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_variant="paper", htp_checkpoint=str(ckpt),
                 htp_threads=1)   # one torch thread: no spin-waiting on a small, busy machine
     base.update(extra)
     return base
@@ -142,7 +143,7 @@ def test_converges_with_cg_and_gmres(frame, tiny_ckpt, options, ksp_type):
 @pytest.mark.skipif(not checkpoint.DEFAULT.exists(), reason="shipped checkpoint not trained yet")
 @pytest.mark.parametrize("ksp_type", ["cg", "fgmres"])
 def test_shipped_checkpoint_beats_jacobi_on_held_out_frames(options, ksp_type):
-    """CG, and flexible GMRES (a float32 M is not exactly linear, see options/gmres_htp.opts)."""
+    """CG, and flexible GMRES (a float32 M is not exactly linear, see options/gmres_paper.opts)."""
     krylov = {"ksp_type": ksp_type, "ksp_rtol": 1e-8, "ksp_norm_type": "unpreconditioned", "ksp_max_it": 20000}
     if ksp_type == "fgmres":
         krylov.update(ksp_pc_side="right", ksp_gmres_restart=100)
@@ -216,8 +217,9 @@ def test_view_lines(frame, tiny_ckpt, options):
 
 @pytest.mark.slow
 def test_ksp_view_and_log_view_from_the_example(tiny_ckpt):
-    out = subprocess.run([sys.executable, str(EXAMPLE), "-n", "1024", "-htp_checkpoint", str(tiny_ckpt),
-                          "-htp_threads", "1", "-ksp_view", "-log_view"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    out = subprocess.run([sys.executable, str(EXAMPLE), "-n", "1024", "-options_file", "cg_paper", "-htp_checkpoint",
+                          str(tiny_ckpt), "-htp_threads", "1", "-ksp_view", "-log_view"], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     text = out.stdout
     assert "converged reason: CONVERGED_RTOL" in text
@@ -309,6 +311,8 @@ def test_attach_survives_new_wrappers(frame):
 # ------------------------------------------------------------------ guards
 
 def python_pc(A, ckpt, options, **extra):
+    """A PCPYTHON with HTPPC's paper variant on ``A`` (the network in ``ckpt``)."""
+    extra = {"htp_variant": "paper", **extra}
     prefix = options(pc_type="python", pc_python_type="petsc_htp.HTPPC", htp_checkpoint=str(ckpt),
                      htp_threads=1, **extra)
     pc = PETSc.PC().create(comm=PETSc.COMM_SELF)

@@ -164,7 +164,8 @@ def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
         b = np.random.default_rng(0).standard_normal(A.shape[0])
         its = {}
         for tol in (0.0, 0.01):
-            reason, its[tol], relres, ksp = solve(mat, b - b.mean(), htp_coarse_tol=tol)
+            reason, its[tol], relres, ksp = solve(mat, b - b.mean(), htp_coarse_tol=tol, htp_leaf=128,
+                                                  htp_coarse_rank=4)
             assert reason > 0 and relres <= 1.01e-8
             counts[name, tol] = ksp.getPC().getPythonContext().setup.kept
         assert its[0.01] <= its[0.0]
@@ -248,10 +249,10 @@ def test_inner_solver_defaults_are_scoped_and_overridable(frames):
     inner = ("htp_leaf_", "htp_cs_")
     assert not [k for k in PETSc.Options().getAll() if k.startswith(ksp.getOptionsPrefix() + inner[0])
                 or k.startswith(ksp.getOptionsPrefix() + inner[1])]
-    assert ksp.getPC().getPythonContext().setup.B.getType() == "cholesky" and relres <= 1.01e-8
+    assert ksp.getPC().getPythonContext().setup.leafsolver.pc.getType() == "cholesky" and relres <= 1.01e-8
     prefix = ksp.getOptionsPrefix()
     _, its_lu, relres_lu, ksp = solve(mat, frame.b, htp_leaf_pc_type="lu")
-    assert ksp.getPC().getPythonContext().setup.B.getType() == "lu"
+    assert ksp.getPC().getPythonContext().setup.leafsolver.pc.getType() == "lu"
     assert abs(its_lu - its) <= 1 and relres_lu <= 1.01e-8 and prefix != ksp.getOptionsPrefix()
 
 
@@ -274,7 +275,7 @@ def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
     frame = frames[1]
     mat = petsc_mat(frame.A)
     petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
-    reason, its, relres, _ = solve(mat, frame.b, htp_coarse="learned")
+    reason, its, relres, _ = solve(mat, frame.b, htp_coarse="learned", htp_leaf=128)
     an = analyse(frame.A, choose_leaves(frame.A, frame.coords))
     basis = coarsenet.learned_basis(coarsenet.cached()[0], an, frame.A, frame.coords, frame.rho)
     torch_its = pcg(frame.A, frame.b, factor(an, frame.A, "seeded", basis=basis).apply, 1e-8).iterations

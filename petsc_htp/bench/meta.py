@@ -41,7 +41,7 @@ def cpu_model() -> str:
 
 
 def versions() -> dict:
-    """Versions of Python and of the numerical packages (pyamg ``missing`` when absent)."""
+    """Versions of Python and of the numerical packages (pyamg and pyamgcl ``missing`` when absent)."""
     import numpy
     import petsc4py
     import scipy
@@ -51,11 +51,11 @@ def versions() -> dict:
     out = {"python": platform.python_version(), "numpy": numpy.__version__, "scipy": scipy.__version__,
            "torch": torch.__version__, "petsc4py": petsc4py.__version__,
            "PETSc": ".".join(map(str, PETSc.Sys.getVersion()))}
-    try:
-        import pyamg
-        out["pyamg"] = pyamg.__version__
-    except ImportError:
-        out["pyamg"] = "missing"
+    for name in ("pyamg", "pyamgcl"):
+        try:
+            out[name] = getattr(__import__(name), "__version__", "installed")
+        except ImportError:
+            out[name] = "missing"
     return out
 
 

@@ -1,19 +1,21 @@
-"""Which methods a benchmark runs: PETSc options files (see :mod:`petsc_htp.methods`), plus pyamg's AMG."""
+"""Which methods a benchmark runs: PETSc options files (see :mod:`petsc_htp.methods`), plus pyamg and AMGCL."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
 from .. import methods
+from .external import NAMES as EXTERNAL
 
 PYAMG = "pyamg"
-DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", "cg_twolevel_const",
-                   "cg_twolevel_eig", "cg_twolevel_learned", PYAMG)
+DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", "cg_paper",
+                   "cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned", "pyamg", "pyamg_sa", "amgcl")
 
 
 @dataclass(frozen=True)
 class Method:
-    """One benchmarked method: an options file (plus ``extra`` option pairs), or pyamg when ``path`` is None."""
+    """One benchmarked method: an options file (plus ``extra`` option pairs), or an external solver
+    (:mod:`petsc_htp.bench.external`) when ``path`` is None."""
 
     name: str
     path: Path | None = None
@@ -31,9 +33,10 @@ class Method:
 
 
 def resolve_method(name) -> Method:
-    """A method from ``pyamg``, a shipped or ``./options`` method name, or a path to an ``.opts`` file."""
-    if name == PYAMG:
-        return Method(PYAMG)
+    """A method from an external solver's name (pyamg, pyamg_sa, amgcl), a shipped or ``./options`` method name,
+    or a path to an ``.opts`` file."""
+    if name in EXTERNAL:
+        return Method(name)
     path = methods.find(name)
     return Method(path.stem, path)
 

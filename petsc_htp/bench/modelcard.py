@@ -2,7 +2,7 @@
 
 Measure, then write::
 
-    petsc-htp bench --methods cg_jacobi cg_bjacobi cg_icc cg_htp --studies table \\
+    petsc-htp bench --methods cg_jacobi cg_bjacobi cg_icc cg_paper --studies table \\
         --scales 1024 2048 4096 8192 16384 --frames 20 --out results/modelcard
     petsc-htp fit -n 1024 2048 4096 --steps 1000 > results/modelcard/fit.jsonl
     python -m petsc_htp.bench.modelcard results/modelcard
@@ -31,12 +31,12 @@ def iteration_table(rows) -> tuple[list, dict]:
     out, verdict = [], {}
     for n in sorted({n for n, _ in by}):
         mean = {m: c["iterations"]["mean"] for (k, m), c in by.items() if k == n}
-        htp = by.get((n, "cg_htp"), {"failed": 0, "frames": 0})
-        ratio = mean.get("cg_htp", np.nan) / mean.get("cg_jacobi", np.nan)
+        htp = by.get((n, "cg_paper"), {"failed": 0, "frames": 0})
+        ratio = mean.get("cg_paper", np.nan) / mean.get("cg_jacobi", np.nan)
         verdict[n] = {"ratio": ratio, "failures": htp["failed"], "frames": htp["frames"],
-                      "beats_bjacobi": mean.get("cg_htp", np.inf) < mean.get("cg_bjacobi", -np.inf)}
+                      "beats_bjacobi": mean.get("cg_paper", np.inf) < mean.get("cg_bjacobi", -np.inf)}
         out.append([n_label(n)] + [f"{mean.get(k, np.nan):.0f}" for k in ("cg_jacobi", "cg_icc", "cg_bjacobi",
-                                                                          "cg_htp")]
+                                                                          "cg_paper")]
                    + [f"{ratio:.2f}", f"{mean.get('cg_bjacobi', np.nan) / mean.get('cg_jacobi', np.nan):.2f}",
                       f"{htp['failed']}/{htp['frames']}"])
     return out, verdict

@@ -1,4 +1,4 @@
-"""One frame, one method: a PETSc options file under its prefix, or pyamg's classical AMG with NumPy PCG.
+"""One frame, one method: a PETSc options file under its prefix, or an external solver (pyamg, AMGCL).
 
 PETSc methods are loaded by :class:`petsc_htp.methods.Loaded` (the project's
 one loader) and solved by :func:`petsc_htp.methods.solve`, which times
@@ -17,13 +17,12 @@ from petsc4py import PETSc
 
 from ..methods import Loaded, common_setting, solve
 from ..petscmat import attach, frame_mat, frame_vec
+from . import external
 
 # Options that only print (the bench records the reason itself).
 PRINT_ONLY = ("ksp_converged_reason",)
 # A converged solve whose true residual misses rtol by more than this factor is a failure.
 RESIDUAL_SLACK = 10.0
-PYAMG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_ITS", "nan": "DIVERGED_NANORINF",
-                 "indefinite_pc": "DIVERGED_INDEFINITE_PC", "indefinite_mat": "DIVERGED_INDEFINITE_MAT"}
 
 
 # ------------------------------------------------------------------ options
@@ -48,10 +47,14 @@ def load(method, extra=()) -> Loaded:
 # ------------------------------------------------------------------------- rows
 
 def residuals(A, b, x):
-    """``(||b - A x|| / ||b||, the same with the constant (null-space) component removed)``."""
+    """``(||b - A x|| / ||b||, the same with the constant (null-space) component removed)``; the second is
+    the first when A does not annihilate the constant."""
     r = b - A @ x
+    first = float(np.linalg.norm(r) / np.linalg.norm(b))
+    if np.abs(A @ np.ones(A.shape[0])).max() > 1e-10 * np.abs(A.diagonal()).max():
+        return first, first
     bp, rp = b - b.mean(), r - r.mean()
-    return float(np.linalg.norm(r) / np.linalg.norm(b)), float(np.linalg.norm(rp) / np.linalg.norm(bp))
+    return first, float(np.linalg.norm(rp) / np.linalg.norm(bp))
 
 
 def failure_of(reason, relres, relres_proj, rtol):
@@ -146,46 +149,22 @@ def solve_petsc(method, prefix, problem, monitor=False) -> dict:
             obj.destroy()
 
 
-# ------------------------------------------------------------------------ pyamg
+# ---------------------------------------------------------------- external
 
-class _Stamped:
-    """Wrap a preconditioner apply, recording the time of every call."""
+def solve_external(method, problem, monitor=False) -> dict:
+    """pyamg or AMGCL (:mod:`petsc_htp.bench.external`) from scratch, with the options files' stopping rule.
 
-    def __init__(self, apply):
-        self.apply, self.times = apply, []
-
-    def __call__(self, r):
-        self.times.append(time.perf_counter())
-        return self.apply(r)
-
-
-def solve_pyamg(method, problem, monitor=False) -> dict:
-    """pyamg Ruge-Stuben AMG (V-cycle) preconditioning NumPy PCG, on the mean-projected rhs.
-
-    Same stopping rule as the options files (``rtol`` from ``common.opts`` on
-    the unpreconditioned residual, ``ksp_max_it`` iterations at most).
+    ``rtol`` from ``common.opts`` on the unpreconditioned residual, ``ksp_max_it`` iterations at most.
     """
-    import pyamg
-
-    from ..pcg import pcg
-
     frame = problem.frame
     rtol = problem.rtol or common_setting("ksp_rtol", 1e-8)
-    maxit = int(common_setting("ksp_max_it", 10000))
-    t0 = time.perf_counter()
-    ml = pyamg.ruge_stuben_solver(frame.A)
-    apply = _Stamped(ml.aspreconditioner().matvec)
-    t1 = time.perf_counter()
-    res = pcg(frame.A, frame.b - frame.b.mean(), apply, rtol=rtol, maxiter=maxit)
-    t2 = time.perf_counter()
-    row = {**base_row(method, problem), "setup_ms": 1e3 * (t1 - t0), "solve_ms": 1e3 * (t2 - t1),
-           "iterations": res.iterations, "reason": PYAMG_REASONS[res.reason], "ksp": "numpy-cg",
-           "pc": f"pyamg-rs({len(ml.levels)} levels)", "inference_ms": None}
+    res = external.solve(method.name, frame.A, frame.b, rtol, int(common_setting("ksp_max_it", 10000)), monitor)
+    row = {**base_row(method, problem), "setup_ms": res["setup_ms"], "solve_ms": res["solve_ms"],
+           "iterations": res["iterations"], "reason": res["reason"], "ksp": res["ksp"], "pc": res["pc"],
+           "inference_ms": None}
     if monitor:
-        times = (apply.times + [t2] * len(res.history))[:len(res.history)]
-        bnorm = float(np.linalg.norm(frame.b))
-        row["curve"] = [[1e3 * (t - t0), k, float(h) / bnorm] for k, (t, h) in enumerate(zip(times, res.history))]
-    return _finish(row, frame.A, frame.b, res.x, rtol)
+        row["curve"] = res["curve"]
+    return _finish(row, frame.A, frame.b, res["x"], rtol)
 
 
 # ----------------------------------------------------------------------- driver
@@ -195,7 +174,7 @@ def _solve(method, prefix, problem, monitor):
     try:
         if method.is_petsc:
             return solve_petsc(method, prefix, problem, monitor)
-        return solve_pyamg(method, problem, monitor)
+        return solve_external(method, problem, monitor)
     except Exception as exc:  # a failing method is a result, never the end of the run
         return exception_row(method, problem, exc)
 
@@ -214,7 +193,9 @@ def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=la
             try:
                 if method.is_petsc:
                     loaded.append(load(method, extra))
-            except Exception as exc:  # unreadable options file: every problem fails
+                elif external.missing(method.name):
+                    raise RuntimeError(external.missing(method.name))
+            except Exception as exc:  # unreadable options file or missing package: every problem fails
                 failed[method.name] = exc
         rows, warmed = [], set()
         for problem in problems:

@@ -52,7 +52,7 @@ def run(models, n, frames, extra, tick) -> list:
     from ..runner import htp_options, run_method
     from ..training import model_info
 
-    jac, htp = resolve_method("cg_jacobi"), resolve_method("cg_htp")
+    jac, htp = resolve_method("cg_jacobi"), resolve_method("cg_paper")
     rows = []
     for name, _ in EVAL_SETS:
         problems = eval_problems(name, n, frames)

@@ -42,8 +42,8 @@ def is_htp(method) -> bool:
 
 
 def is_twolevel(method) -> bool:
-    """True when the method's options select HTP's two-level variant."""
-    return _uses(method, "-htp_variant twolevel")
+    """True when the method's options use HTPPC's two-level variant (its default: no ``-htp_variant paper``)."""
+    return is_htp(method) and not (_uses(method, "-htp_variant paper") or _uses(method, "-sub_htp_variant paper"))
 
 
 def recorded_run(side, frames, seed=0):
@@ -86,7 +86,7 @@ def flow_frames(n, count, seed=0) -> list:
             for k, (A, b, coords, coef) in enumerate(systems)]
 
 
-def _frame_row(res, rtol):
+def frame_row(res, rtol) -> dict:
     """A replayed frame's row fields from :meth:`PressureSolver.solve`'s result."""
     from ...methods import reason_name
 
@@ -110,7 +110,7 @@ def replay(method, systems, regions, reuse, extra, keep=0) -> list:
         for frame, (A, b, coords, coef) in enumerate(systems):
             rebuild = policy.rebuild()
             try:
-                row = _frame_row(solver.solve(A, b, coords, coef, rebuild, policy.cap()), rtol)
+                row = frame_row(solver.solve(A, b, coords, coef, rebuild, policy.cap()), rtol)
             except Exception as exc:  # a failing frame is a result
                 row = {"ok": False, "failure": "EXCEPTION", "reason": "EXCEPTION", "error": str(exc)[:200],
                        "iterations": 0, "total_ms": None, "rebuilt": rebuild, "reused_its": 0}
@@ -125,6 +125,29 @@ def replay(method, systems, regions, reuse, extra, keep=0) -> list:
     return rows
 
 
+def replay_external(method, systems) -> list:
+    """An external solver (pyamg, AMGCL) over the recorded run, rebuilt every frame from x0 = 0."""
+    from ...methods import common_setting
+    from ..external import solve
+
+    rows, rtol = [], common_setting("ksp_rtol", 1e-8)
+    for frame, (A, b, coords, coef) in enumerate(systems):
+        try:
+            res = solve(method.name, A, b, rtol, int(common_setting("ksp_max_it", 10000)))
+            relres = float(np.linalg.norm(b - A @ res["x"]) / (np.linalg.norm(b) or 1.0))
+            failure = (res["reason"] if res["reason"].startswith("DIVERGED") else
+                       "RESIDUAL" if not relres <= 10 * rtol else None)
+            row = {"iterations": res["iterations"], "reason": res["reason"], "setup_ms": res["setup_ms"],
+                   "solve_ms": res["solve_ms"], "total_ms": res["setup_ms"] + res["solve_ms"], "relres": relres,
+                   "ok": failure is None, "failure": failure}
+        except Exception as exc:  # a failing frame is a result
+            row = {"ok": False, "failure": "EXCEPTION", "reason": "EXCEPTION", "error": str(exc)[:200],
+                   "iterations": 0, "total_ms": None}
+        rows.append({"method": method.name, "htp": False, "reuse": 0, "keep": 0, "n": A.shape[0], "frame": frame,
+                     "kind": "simulation", "rebuilt": True, "reused_its": 0, **row})
+    return rows
+
+
 def variants(method, every) -> list:
     """(reuse, keep) settings to run: rebuilt every frame; HTP variants also with PC reuse, two-level
     ones also with their coarse space kept ``every`` frames."""
@@ -133,12 +156,18 @@ def variants(method, every) -> list:
 
 
 def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
-    """Every method (and reuse setting) over the run at every side, then on ``gen_frames`` generator frames."""
+    """Every method (and reuse setting) over the run at every side, then on ``gen_frames`` generator frames.
+
+    PETSc methods replay the run through one persistent KSP; pyamg and AMGCL rebuild every frame.
+    """
     from petsc4py import PETSc
+
+    from ..external import missing
 
     PETSc.Log.begin()              # for the rows' pc_setups (PCSetUp events, inner PCs included)
     rows = []
     petsc = [m for m in methods if m.is_petsc]
+    outside = [m for m in methods if not m.is_petsc and not missing(m.name)]
     for side in sides:
         systems, regions = recorded_run(side, frames)
         for m in petsc:
@@ -147,16 +176,21 @@ def run(methods, sides, frames, every, gen_frames, extra, tick) -> list:
                 for row in replay(m, systems, regions, reuse, extra, keep):
                     rows.append(tag(row, side=side))
                     tick()
+        for m in outside:
+            replay_external(m, systems[:1])                               # warm-up, discarded
+            for row in replay_external(m, systems):
+                rows.append(tag(row, side=side))
+                tick()
         gen = [Problem(f, case="generator") for f in held_out_frames(side * side, gen_frames)]
         rows += [tag(r, kind="generator", reuse=0, side=side, htp=is_htp(m))
-                 for m in petsc for r in solve_all([m], gen, extra, tick, "simulation", warmup=False)]
+                 for m in petsc + outside for r in solve_all([m], gen, extra, tick, "simulation", warmup=False)]
     return rows
 
 
 # ------------------------------------------------------------------ report
 
 def label(method, reuse, keep=0) -> str:
-    """``cg_htp``, ``cg_htp reuse 5`` or ``cg_twolevel_eig keep W 5``."""
+    """``cg_paper``, ``cg_paper reuse 5`` or ``cg_twolevel_eig keep W 5``."""
     return f"{method} reuse {reuse}" if reuse else f"{method} keep W {keep}" if keep else method
 
 
@@ -251,9 +285,9 @@ class Simulation(Study):
                         "reuse": settings["sim_reuse"], "gen_frames": settings["sim_gen_frames"]}}
 
     def expected_solves(self, ctx):
-        s, petsc = ctx.settings, [m for m in ctx.methods if m.is_petsc]
-        runs = sum(len(variants(m, s["sim_reuse"])) for m in petsc)
-        return len(s["sim_n"]) * (runs * s["sim_frames"] + len(petsc) * s["sim_gen_frames"])
+        s = ctx.settings
+        runs = sum(len(variants(m, s["sim_reuse"])) if m.is_petsc else 1 for m in ctx.methods)
+        return len(s["sim_n"]) * (runs * s["sim_frames"] + len(ctx.methods) * s["sim_gen_frames"])
 
     def measure(self, ctx, tick):
         s = ctx.settings

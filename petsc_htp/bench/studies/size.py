@@ -41,7 +41,7 @@ def run(models, base, scales, frames, extra, tick) -> list:
     from ..runner import htp_options, run_method
     from ..training import label, model_info
 
-    htp = resolve_method("cg_htp")
+    htp = resolve_method("cg_paper")
     problems = table_problems(scales, frames)
     rows = []
     for cfg, loss, path in models:

@@ -1,0 +1,159 @@
+"""Defaults by time: the two-level variant over leaf size, coarse rank, overlap and form, in sequence mode.
+
+Every configuration is ``cg_twolevel_eig`` (or ``cg_twolevel_const``) with ``-htp_leaf L -htp_coarse_rank r
+-htp_overlap k -htp_form f -htp_coarse_tol 0`` and solves the sequence study's frames (:mod:`.sequence`,
+methods interleaved frame by frame). The default is the configuration with the smallest geometric mean
+over N of its median ms per frame relative to the fastest configuration at that N.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..aggregate import cells, pareto_front
+from ..markdown import image, its, md_table, ms, n_label, ratio
+from ..plotting import figure, save
+from .base import Size, Study
+
+CHART = "defaults.png"
+SCALES = Size("defaults_scales", [16384, 65536], [256, 1024], "N of the defaults sweep")
+FRAMES = Size("defaults_frames", 5, 2, "frames per N of the defaults sweep")
+LEAVES = Size("defaults_leaves", [64, 128, 256, 512], [32, 64], "leaf sizes L of the defaults sweep")
+RANKS = Size("defaults_ranks", [2, 3, 4, 6, 8], [2, 4], "coarse ranks r of the defaults sweep")
+OVERLAPS = Size("defaults_overlaps", [0, 1], [0, 1], "leaf overlaps of the defaults sweep")
+FORMS = ("deflated", "balanced")
+
+
+def configurations(leaves, ranks, overlaps) -> list:
+    """Every (name, coarse, L, r, overlap, form) of the sweep: eig at every r, const once per L."""
+    out = []
+    for L in leaves:
+        for ov in overlaps:
+            for form in FORMS:
+                out += [(f"eig L{L} r{r} ov{ov} {form}", "eig", L, r, ov, form) for r in ranks]
+                out.append((f"const L{L} ov{ov} {form}", "const", L, 1, ov, form))
+    return out
+
+
+def sweep_methods(leaves, ranks, overlaps) -> list:
+    """The sweep's configurations as benchmark methods."""
+    from ..methods import Method, resolve_method
+
+    base = {"eig": resolve_method("cg_twolevel_eig"), "const": resolve_method("cg_twolevel_const")}
+    out = []
+    for name, coarse, L, r, ov, form in configurations(leaves, ranks, overlaps):
+        extra = (("htp_leaf", str(L)), ("htp_overlap", str(ov)), ("htp_form", form), ("htp_coarse_tol", "0"))
+        extra += (("htp_coarse_rank", str(r)),) if coarse == "eig" else ()
+        out.append(Method(name.replace(" ", "_"), base[coarse].path, extra))
+    return out
+
+
+def _label(method) -> str:
+    return method.replace("_", " ")
+
+
+def table(res) -> tuple:
+    """{(method, n): cell} of the frames after the first, the scales, and the configurations by overall rank."""
+    rows = [r for r in res.rows["defaults"] if r.get("kind") == "frame" and not r.get("first")]
+    by = cells(rows, "method", "n")
+    scales = sorted({r["n"] for r in rows})
+    best = {n: min((c["total_ms"]["median"] for (m, k), c in by.items() if k == n and not c["failed"]
+                    and c["total_ms"]["count"]), default=math.nan) for n in scales}
+    score = {}
+    for m in dict.fromkeys(r["method"] for r in rows):
+        cs = [by.get((m, n)) for n in scales]
+        if all(c and not c["failed"] and c["total_ms"]["count"] for c in cs):
+            score[m] = float(np.exp(np.mean([np.log(c["total_ms"]["median"] / best[n]) for c, n in zip(cs, scales)])))
+    return by, scales, sorted(score, key=score.get), score
+
+
+def chosen(res) -> str | None:
+    """The configuration the sweep picks (fastest geometric mean over N), or None."""
+    order = table(res)[2]
+    return order[0] if order else None
+
+
+def body(res, top=12) -> str:
+    by, scales, order, score = table(res)
+    head = ["Configuration"] + [f"N={n_label(n)}: ms (its)" for n in scales] + ["× fastest (geo. mean)"]
+    rows = [[_label(m)] + [f"{ms(by[(m, n)]['total_ms']['median'])} ({its(by[(m, n)]['iterations']['mean'])})"
+                           for n in scales] + [ratio(score[m])] for m in order[:top]]
+    return md_table(head, rows)
+
+
+def chart(res, out) -> str:
+    """ms per frame against mean iterations of every configuration, one panel per N; the front joined."""
+    by, scales, order, _ = table(res)
+    fig, axes = figure(5.2 * len(scales), 4.2, cols=len(scales))
+    for ax, n in zip(axes[0], scales):
+        pts = [(m, by[(m, n)]) for m in order if (m, n) in by]
+        xy = [(c["iterations"]["mean"], c["total_ms"]["median"]) for _, c in pts]
+        for (m, _), (x, y) in zip(pts, xy):
+            kind = "o" if "ov0" in m else "s"
+            ax.plot(x, y, kind, ms=4, color="tab:blue" if "deflated" in m else "tab:orange", alpha=0.7)
+        front = pareto_front(xy)
+        ax.plot([xy[i][0] for i in front], [xy[i][1] for i in front], "k-", lw=1, label="front")
+        if order:
+            c = by.get((order[0], n))
+            ax.plot(c["iterations"]["mean"], c["total_ms"]["median"], "r*", ms=12, label="default: " + _label(order[0]))
+        ax.set_xlabel("mean CG iterations")
+        ax.set_ylabel("median ms per frame (setup + solve)")
+        ax.set_yscale("log")
+        ax.set_title(f"N={n_label(n)} (blue deflated, orange balanced; o overlap 0, s overlap 1)", fontsize=8)
+        ax.legend(fontsize=7)
+    return save(fig, out, CHART)
+
+
+class Defaults(Study):
+    """The sweep that picks HTPPC's defaults by time."""
+
+    name = "defaults"
+    help = "defaults by time: two-level leaf size, coarse rank, overlap and form in sequence mode; the front"
+    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS)
+    readme_links = ((CHART, "defaults sweep"),)
+
+    def meta(self, settings):
+        return {"defaults": {k: settings[s.name] for k, s in (("scales", SCALES), ("frames", FRAMES),
+                                                                ("leaves", LEAVES), ("ranks", RANKS),
+                                                                ("overlaps", OVERLAPS))}}
+
+    def _methods(self, s):
+        return sweep_methods(s["defaults_leaves"], s["defaults_ranks"], s["defaults_overlaps"])
+
+    def expected_solves(self, ctx):
+        s = ctx.settings
+        return len(self._methods(s)) * len(s["defaults_scales"]) * s["defaults_frames"]
+
+    def measure(self, ctx, tick):
+        from .sequence import run
+
+        s = ctx.settings
+        rows = run(self._methods(s), s["defaults_scales"], s["defaults_frames"], ctx.extra, tick)
+        return [{**r, "study": "defaults"} for r in rows]
+
+    def section(self, res):
+        meta = res.meta.get("defaults", {})
+        pick = chosen(res)
+        return "\n\n".join([
+            "## Defaults by time (two-level variant)",
+            f"`cg_twolevel_eig` at leaf sizes {meta.get('leaves')}, coarse ranks {meta.get('ranks')}, overlaps "
+            f"{meta.get('overlaps')} and both forms, and `cg_twolevel_const` at each leaf size, overlap and form "
+            f"(`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} frames per N, configurations "
+            "interleaved frame by frame). Median ms per frame (setup + solve) after the first frame, mean "
+            "iterations; ranked by the geometric mean over N of the time relative to the fastest configuration "
+            "at that N (the fastest 12):",
+            body(res),
+            f"Picked: **{_label(pick) if pick else '—'}**.",
+            image(CHART, "Defaults sweep"),
+        ])
+
+    def charts(self, res, out):
+        return [chart(res, out)]
+
+    def summary(self, res):
+        pick = chosen(res)
+        return body(res) + f"\n\nPicked: {_label(pick) if pick else '—'}"
+
+
+STUDY = Defaults()
