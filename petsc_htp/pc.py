@@ -44,7 +44,7 @@ import torch
 from petsc4py import PETSc
 
 from .pcoptions import HTPOptions
-from .petscmat import VERSION_ATTR, attach, attached, read_csr
+from .petscmat import VERSION_ATTR, attach, attached, local_rows
 from .variants import VARIANTS
 
 __all__ = ["HTPPC", "attach"]
@@ -125,7 +125,8 @@ class HTPPC:
     # ------------------------------------------------------------ setup
     def setUp(self, pc):
         """Analyse a new pattern, then run the numeric step for new values (each only when needed)."""
-        opts = self.opts = HTPOptions.from_petsc(pc.getOptionsPrefix() or "")
+        self.prefix = pc.getOptionsPrefix() or ""
+        opts = self.opts = HTPOptions.from_petsc(self.prefix)
         P = pc.getOperators()[1]
         coords, density = attached(P)
         values = (P.getId(), P.stateGet(), P.getAttr(VERSION_ATTR), opts)
@@ -137,32 +138,36 @@ class HTPPC:
             changed = set_torch_threads(opts.threads)
             if changed is not None:
                 self.threads_note = f"set process-wide to {opts.threads} by {self._opt(pc)}threads (was {changed})"
-            A = read_csr(P)                             # this rank's rows (the whole matrix on one)
-            pattern = (P.getId(), opts.pattern_key())
-            nonzero = A.data != 0
-            if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
-                    or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
-                            and _same_array(nonzero, self._csr[2]))):
-                self._free()
-                if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
-                    self.variant = VARIANTS[opts.variant](opts, pc.getOptionsPrefix() or "")
-                self.analysis = self.variant.analyse(P, A, coords)
-                self._coords = None if coords is None else coords.copy()
-                self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
-                self._pattern = pattern
-                self.analysis_count += 1
-            self.variant.opts = opts
-            t0 = time.perf_counter()
-            self.setup = self.variant.numeric(self.analysis, P, A, density, self.setup)
-            self.setup_ms = 1e3 * (time.perf_counter() - t0)
-            self.numeric_count += 1
-            self.n = A.shape[0]
+            with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
+                self._setup(P, A, coords, density, opts)
             self._check(pc, opts)
-            if self.fallback_active:
-                self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
             self._values = values
         finally:
             self._ev_setup.end()
+
+    def _setup(self, P, A, coords, density, opts):
+        """Analyse when the pattern, coordinates or a pattern option changed, then the numeric step."""
+        pattern = (P.getId(), opts.pattern_key())
+        nonzero = A.data != 0
+        if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
+                or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
+                        and _same_array(nonzero, self._csr[2]))):
+            self._free()
+            if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
+                self.variant = VARIANTS[opts.variant](opts, self.prefix)
+            self.analysis = self.variant.analyse(P, A, coords)
+            self._coords = None if coords is None else coords.copy()
+            self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
+            self._pattern = pattern
+            self.analysis_count += 1
+        self.variant.opts = opts
+        t0 = time.perf_counter()
+        self.setup = self.variant.numeric(self.analysis, P, A, density, self.setup)
+        self.setup_ms = 1e3 * (time.perf_counter() - t0)
+        self.numeric_count += 1
+        self.n = A.shape[0]
+        if opts.fallback == "jacobi":
+            self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
 
     def _check(self, pc, opts):
         """The setup's own checks; switch to Jacobi when asked to."""

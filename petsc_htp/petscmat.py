@@ -1,6 +1,9 @@
 """The PETSc side of the data: geometry attached to a Mat, and a sequential Mat read as scipy CSR."""
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import functools
 import itertools
 import math
 
@@ -84,8 +87,60 @@ def attached(mat):
     return mat.getAttr(COORDS_ATTR), mat.getAttr(DENSITY_ATTR)
 
 
+@contextlib.contextmanager
+def local_rows(mat, copy=False):
+    """This rank's rows of ``mat`` as scipy CSR (global columns) for the duration of the block.
+
+    For a sequential AIJ matrix and ``copy=False`` the arrays are views of PETSc's own (through its C API:
+    no copy of the matrix per frame) and must not be kept past the block; otherwise :func:`read_csr`'s copy.
+    """
+    if copy or mat.getType() != "seqaij":
+        yield read_csr(mat)
+        return
+    lib, it = _c_api()
+    handle = ctypes.c_void_p(mat.handle)
+    n, ia, ja, done = it(), ctypes.POINTER(it)(), ctypes.POINTER(it)(), ctypes.c_int()
+    values = ctypes.POINTER(ctypes.c_double)()
+    ij = (handle, it(0), ctypes.c_int(0), ctypes.c_int(0), ctypes.byref(n), ctypes.byref(ia), ctypes.byref(ja),
+          ctypes.byref(done))
+    if lib.MatGetRowIJ(*ij) or not done.value or lib.MatSeqAIJGetArrayRead(handle, ctypes.byref(values)):
+        raise RuntimeError("PETSc's MatGetRowIJ / MatSeqAIJGetArrayRead failed on a seqaij matrix")
+    try:
+        indptr = np.ctypeslib.as_array(ia, shape=(n.value + 1,))
+        nnz = int(indptr[-1])
+        A = sp.csr_matrix((np.ctypeslib.as_array(values, shape=(nnz,)) if nnz else np.zeros(0),
+                           np.ctypeslib.as_array(ja, shape=(nnz,)) if nnz else np.zeros(0, dtype=indptr.dtype),
+                           indptr), shape=mat.getSize())
+        yield _checked(mat, A)
+    finally:
+        lib.MatSeqAIJRestoreArrayRead(handle, ctypes.byref(values))
+        lib.MatRestoreRowIJ(*ij)
+
+
+@functools.lru_cache(maxsize=1)
+def _c_api():
+    """PETSc's C library (reached through petsc4py's extension module) and the ctypes type of PetscInt."""
+    return ctypes.CDLL(PETSc.__file__), (ctypes.c_int32 if np.dtype(PETSc.IntType).itemsize == 4 else ctypes.c_int64)
+
+
+def _checked(mat, A) -> sp.csr_matrix:
+    """``A`` (this rank's rows of ``mat``) after the checks every HTPPC setup makes: square, not empty, finite."""
+    rows, cols = mat.getSize()
+    if rows != cols:
+        raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
+    if rows == 0:
+        raise ValueError("HTPPC got an empty matrix (0 x 0)")
+    nnz = A.nnz if mat.getComm().getSize() == 1 else mat.getComm().tompi4py().allreduce(A.nnz)
+    if nnz == 0:
+        raise ValueError(f"HTPPC got an empty matrix ({rows} x {cols} with no nonzeros)")
+    bad = int(np.count_nonzero(~np.isfinite(A.data)))
+    if bad:
+        raise ValueError(f"matrix contains {bad} NaN or Inf entries; HTPPC needs a finite SPD matrix")
+    return A
+
+
 def read_csr(mat) -> sp.csr_matrix:
-    """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank)."""
+    """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank), a copy."""
     rows, cols = mat.getSize()
     if rows != cols:
         raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
@@ -95,20 +150,16 @@ def read_csr(mat) -> sp.csr_matrix:
     if mat.getType() not in ("seqaij", "mpiaij"):
         aij = "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
         try:
-            src = mat.convert(aij)
+            src = mat.convert(aij, out=PETSc.Mat())         # a converted copy: the caller's Mat stays as it is
         except PETSc.Error as exc:
             raise ValueError(f"HTPPC needs an assembled AIJ matrix; cannot convert a "
                              f"'{mat.getType()}' matrix to {aij}") from exc
     start, end = mat.getOwnershipRange()
-    indptr, indices, data = src.getValuesCSR()
-    A = sp.csr_matrix((np.asarray(data, dtype=np.float64).copy(), np.asarray(indices).copy(),
-                       np.asarray(indptr).copy()), shape=(end - start, cols))
-    if mat.getComm().tompi4py().allreduce(A.nnz) == 0:
-        raise ValueError(f"HTPPC got an empty matrix ({rows} x {cols} with no nonzeros)")
-    bad = int(np.count_nonzero(~np.isfinite(A.data)))
-    if bad:
-        raise ValueError(f"matrix contains {bad} NaN or Inf entries; HTPPC needs a finite SPD matrix")
-    return A
+    indptr, indices, data = src.getValuesCSR()                 # fresh arrays, ours to keep
+    if src is not mat:
+        src.destroy()
+    return _checked(mat, sp.csr_matrix((np.asarray(data, dtype=np.float64), indices, indptr),
+                                       shape=(end - start, cols)))
 
 
 def _ownership_range(n, size, rank):

@@ -172,7 +172,11 @@ class TwoLevelPC:
         block = rows if self.coll.size == 1 else rows[:, start:end].tocsr()
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf)
         lay = self.lay = layout(rows, start, self.leaves)
-        self.block = block
+        self._torch_analysis = None
+        if cfg.coarse == "learned":                                   # the network's layout: pattern only
+            from . import twolevel
+
+            self._torch_analysis = twolevel.analyse(block, self.leaves)
         self._components(rows)
         self._columns()
         self._matrices(rows, prefix)
@@ -302,9 +306,8 @@ class TwoLevelPC:
         self._dropped = self.piece_col[drop[self.piece_offset:self.piece_offset + lay.pieces.n_pieces]]
         values = self.w_values
         if self._dropped.size:
-            gone = np.zeros(int(self.ncols.sum()), dtype=bool)
-            gone[self._dropped - self.leaf_col[0]] = True
-            values = np.where(gone[self.w_local_col], 0.0, values)
+            values = values.copy()
+            values[self._zeroed(self._dropped)] = 0.0
         self.W.setValuesCOO(values)
         T["coarse_space"] = _ms(t0)
         t0 = time.perf_counter()
@@ -315,6 +318,15 @@ class TwoLevelPC:
         T["coarse_factor"] = _ms(t0)
         self.times, self.null_components = T, int(null.sum())
         self.numeric_count += 1
+
+    def _zeroed(self, dropped) -> np.ndarray:
+        """W's entries in the columns ``dropped`` (cached: the null space rarely changes)."""
+        key = dropped.tobytes()
+        if getattr(self, "_zeroed_key", None) != key:
+            gone = np.zeros(int(self.ncols.sum()), dtype=bool)
+            gone[dropped - self.leaf_col[0]] = True
+            self._zeroed_key, self._zeroed_at = key, np.flatnonzero(gone[self.w_local_col])
+        return self._zeroed_at
 
     def _null(self, data) -> tuple:
         """Null components (attached MatNullSpace, else A's row sums), and the pieces to drop and to ground."""
@@ -354,12 +366,9 @@ class TwoLevelPC:
 
     def _learned_seeds(self, rows, density) -> np.ndarray:
         """The coarse network's vectors (constant column left out) as seeds, plus the cosine extras."""
-        from . import twolevel
         from .coarsenet import learned_basis
 
-        if getattr(self, "_torch_analysis", None) is None:
-            self._torch_analysis = twolevel.analyse(self.block, self.leaves)
-        block = self.block if self.coll.size == 1 else _folded_block(rows, self.lay.start, self.lay.n)
+        block = rows if self.coll.size == 1 else _folded_block(rows, self.lay.start, self.lay.n)
         P = learned_basis(self.net, self._torch_analysis, block, self.coords, density).cpu()
         P = P[:, :, 1:] if self.net.cfg.const_column else P
         K, L = self.lay.shape
