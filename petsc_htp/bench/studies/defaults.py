@@ -2,8 +2,9 @@
 
 Every configuration is ``cg_twolevel_eig`` (or ``cg_twolevel_const``) with ``-htp_leaf L -htp_coarse_rank r
 -htp_overlap k -htp_form f -htp_coarse_tol 0`` and solves the sequence study's frames (:mod:`.sequence`,
-methods interleaved frame by frame). The default is the configuration with the smallest geometric mean
-over N of its median ms per frame relative to the fastest configuration at that N.
+methods interleaved frame by frame). Configurations are ranked by the geometric mean over N of their
+median ms per frame relative to the fastest configuration at that N; the default is the first whose
+every frame (the first included) took at most :data:`ITERATION_BAR` CG iterations.
 """
 from __future__ import annotations
 
@@ -19,10 +20,11 @@ from .base import Size, Study
 CHART = "defaults.png"
 SCALES = Size("defaults_scales", [16384, 65536], [256, 1024], "N of the defaults sweep")
 FRAMES = Size("defaults_frames", 5, 2, "frames per N of the defaults sweep")
-LEAVES = Size("defaults_leaves", [64, 128, 256, 512], [32, 64], "leaf sizes L of the defaults sweep")
+LEAVES = Size("defaults_leaves", [16, 32, 64, 128, 256, 512], [32, 64], "leaf sizes L of the defaults sweep")
 RANKS = Size("defaults_ranks", [2, 3, 4, 6, 8], [2, 4], "coarse ranks r of the defaults sweep")
 OVERLAPS = Size("defaults_overlaps", [0, 1], [0, 1], "leaf overlaps of the defaults sweep")
 FORMS = ("deflated", "balanced")
+ITERATION_BAR = 35     # the most CG iterations a default may take on any frame
 
 
 def configurations(leaves, ranks, overlaps) -> list:
@@ -68,18 +70,46 @@ def table(res) -> tuple:
     return by, scales, sorted(score, key=score.get), score
 
 
+def most_iterations(res) -> dict:
+    """The most CG iterations each configuration took on any frame (the first included)."""
+    out = {}
+    for r in res.rows["defaults"]:
+        if r.get("kind") == "frame":
+            out[r["method"]] = max(out.get(r["method"], 0), r.get("iterations") or 0)
+    return out
+
+
 def chosen(res) -> str | None:
-    """The configuration the sweep picks (fastest geometric mean over N), or None."""
-    order = table(res)[2]
-    return order[0] if order else None
+    """The fastest configuration (geometric mean over N) within the iteration bar on every frame, or None."""
+    worst = most_iterations(res)
+    return next((m for m in table(res)[2] if worst.get(m, math.inf) <= ITERATION_BAR), None)
 
 
 def body(res, top=12) -> str:
     by, scales, order, score = table(res)
-    head = ["Configuration"] + [f"N={n_label(n)}: ms (its)" for n in scales] + ["× fastest (geo. mean)"]
+    worst = most_iterations(res)
+    head = (["Configuration"] + [f"N={n_label(n)}: ms (its)" for n in scales]
+            + ["most its", "× fastest (geo. mean)"])
     rows = [[_label(m)] + [f"{ms(by[(m, n)]['total_ms']['median'])} ({its(by[(m, n)]['iterations']['mean'])})"
-                           for n in scales] + [ratio(score[m])] for m in order[:top]]
+                           for n in scales] + [str(worst.get(m, "—")), ratio(score[m])] for m in order[:top]]
     return md_table(head, rows)
+
+
+def forms(res) -> str:
+    """An application's cost in MatMults of A, deflated against balanced, for the picked leaf size and rank."""
+    pick = chosen(res)
+    apply = {(r["method"], r["n"]): r for r in res.rows["defaults"] if r.get("kind") == "apply"}
+    if not pick:
+        return ""
+    lines = []
+    for form in FORMS:
+        name = pick.replace("deflated", form).replace("balanced", form)
+        for (m, n), a in sorted(apply.items()):
+            if m == name:
+                lines.append([_label(m), n_label(n), ms(a["apply"]), f"{a['apply'] / a['matmult']:.1f}"]
+                             + [f"{a[k] / a['matmult']:.1f}" for k in ("leaf solve", "coarse solve", "thin products")])
+    return md_table(["Configuration", "N", "apply ms", "in MatMults", "leaf solve", "coarse solve(s)",
+                     "thin products"], lines, left=2)
 
 
 def chart(res, out) -> str:
@@ -141,10 +171,15 @@ class Defaults(Study):
             f"{meta.get('overlaps')} and both forms, and `cg_twolevel_const` at each leaf size, overlap and form "
             f"(`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} frames per N, configurations "
             "interleaved frame by frame). Median ms per frame (setup + solve) after the first frame, mean "
-            "iterations; ranked by the geometric mean over N of the time relative to the fastest configuration "
-            "at that N (the fastest 12):",
+            "iterations, the most iterations on any frame; ranked by the geometric mean over N of the time "
+            "relative to the fastest configuration at that N (the fastest 12):",
             body(res),
-            f"Picked: **{_label(pick) if pick else '—'}**.",
+            f"Picked: **{_label(pick) if pick else '—'}**, the fastest configuration that took at most "
+            f"{ITERATION_BAR} iterations on every frame.",
+            "One application of the picked leaf size and rank in each form, in MatMults of A (the deflated form: "
+            "one leaf solve, one coarse solve and two thin products; the balanced one: a second coarse solve "
+            "and three more thin products):",
+            forms(res),
             image(CHART, "Defaults sweep"),
         ])
 
