@@ -7,7 +7,7 @@
 
 ``-n`` sets the grid side (256). The matrix is handed over bare (no coordinates, no density, no null space): the conductivity is 1 with
 discs of conductivity ``-contrast`` (1000), harmonic means on the faces, homogeneous Dirichlet boundaries
-(:func:`petsc_htp.gallery.variable_poisson` builds the same matrix). ``-warmup`` solves a smaller problem
+(:func:`petsc_htp.scenes.gallery.variable_poisson` builds the same matrix). ``-warmup`` solves a smaller problem
 first, so that one-time costs (Python imports, first calls) are not in the timed solve. Prints the
 iterations, PETSc's reason, the setup (KSPSetUp: the preconditioner's analysis and factorisation) and
 solve milliseconds, and the true relative residual; exits non-zero when the solve did not converge.
@@ -22,7 +22,7 @@ petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from petsc_htp.gallery import face_weights, inclusions  # noqa: E402
+from petsc_htp.scenes.gallery import face_weights, inclusions  # noqa: E402
 
 
 def assemble(da, contrast, seed):

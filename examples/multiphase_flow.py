@@ -7,7 +7,7 @@
 
 Method files are loaded by :class:`petsc_htp.methods.Loaded` (a shipped
 name such as ``cg_gamg`` works too); the simulation itself is
-:func:`petsc_htp.simulation.simulate`.
+:func:`petsc_htp.sim.simulation.simulate`.
 
 Options
     -nx, -ny N          grid cells (default 64; 32 with -quick)
@@ -45,9 +45,9 @@ from petsc_htp.methods import Loaded, init_petsc  # noqa: E402
 OPTION_FILES = init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from petsc_htp.flow import Flow  # noqa: E402
-from petsc_htp.flowplot import plot_runs  # noqa: E402
-from petsc_htp.simulation import simulate, summary  # noqa: E402
+from petsc_htp.sim.flow import Flow  # noqa: E402
+from petsc_htp.sim.plot import plot_runs  # noqa: E402
+from petsc_htp.sim.simulation import simulate, summary  # noqa: E402
 
 PROPAGATE = ("ksp_rtol", "ksp_atol", "ksp_max_it")
 

@@ -47,8 +47,8 @@ from petsc4py import PETSc  # noqa: E402
 
 import petsc_htp  # noqa: E402
 from petsc_htp.petscmat import frame_mat, frame_vec  # noqa: E402
-from petsc_htp.sceneplot import plot_frame  # noqa: E402
-from petsc_htp.scenes import make_frame  # noqa: E402
+from petsc_htp.scenes.plot import plot_frame  # noqa: E402
+from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 DEFAULT_FILES = ("cg_htp",)
 PROPAGATE = ("ksp_rtol", "ksp_atol", "ksp_max_it")

@@ -1,4 +1,8 @@
-"""Checkpoints: weights + configuration + provenance + a format version, written atomically."""
+"""Checkpoints of either network: weights + configuration + provenance + a format version, written atomically.
+
+The paper network's own loading is :mod:`petsc_htp.paper.weights`, the coarse network's
+:mod:`petsc_htp.twolevel.coarsenet`.
+"""
 from __future__ import annotations
 
 import os
@@ -7,7 +11,6 @@ from pathlib import Path
 import torch
 
 from .atomic import atomic_open
-from .model import HTPConfig, HTPNet
 
 FORMAT = "petsc_htp-checkpoint"
 VERSION = 1
@@ -65,43 +68,11 @@ def read(path=None, fmt: str = FORMAT, version: int = VERSION, default: Path = D
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged file
-        raise CheckpointError(f"{what} {path} is corrupt or unreadable: {exc}") from exc
+        raise CheckpointError(f"{what} {path} is corrupt or unreadable: torch.load failed with "
+                              f"{type(exc).__name__} (the cause holds torch's message)") from exc
     if not isinstance(obj, dict) or obj.get("format") != fmt:
         raise CheckpointError(f"{path} is not a {what}")
     if obj.get("version") != version:
         raise CheckpointError(f"{what} {path} has format version {obj.get('version')!r}; "
                               f"this petsc_htp reads version {version}")
     return obj
-
-
-def warm_start(net: HTPNet, path) -> dict:
-    """Copy a checkpoint's weights into ``net`` (same configuration); returns its provenance.
-
-    Weights the checkpoint lacks (added to the network since) keep their initial values.
-    """
-    obj = read(path)
-    if obj["config"] != net.cfg.to_dict():
-        raise CheckpointError(f"checkpoint {path} configuration {obj['config']} does not match "
-                              f"the network's {net.cfg.to_dict()}")
-    res = net.load_state_dict(obj["state_dict"], strict=False)
-    if res.unexpected_keys:
-        raise CheckpointError(f"checkpoint {path} has weights this network lacks: {res.unexpected_keys}")
-    return obj.get("provenance", {})
-
-
-def load(path=None, expect: HTPConfig | None = None) -> tuple[HTPNet, dict]:
-    """Return (network in eval mode, provenance); ``expect`` must equal the stored config if given."""
-    obj = read(path)
-    try:
-        cfg = HTPConfig(**obj["config"])
-    except TypeError as exc:
-        raise CheckpointError(f"checkpoint {path} has an unknown configuration: {exc}") from exc
-    if expect is not None and expect != cfg:
-        raise CheckpointError(f"checkpoint {path} configuration {cfg} does not match the requested {expect}")
-    net = HTPNet(cfg)
-    try:
-        net.load_state_dict(obj["state_dict"])
-    except RuntimeError as exc:
-        raise CheckpointError(f"checkpoint {path} weights do not match its configuration: {exc}") from exc
-    net.eval()
-    return net, obj.get("provenance", {})

@@ -9,9 +9,9 @@ from pathlib import Path
 
 
 def _scene(args):
-    from .dataset import save_frames
-    from .sceneplot import plot_frame
-    from .scenes import frame_summary, make_frame
+    from .scenes.dataset import save_frames
+    from .scenes.plot import plot_frame
+    from .scenes.generator import frame_summary, make_frame
 
     frame = make_frame(args.n, seed=args.seed, distribution=args.distribution,
                        contrast=tuple(args.contrast) if args.contrast else None, rhs=args.rhs)
@@ -23,14 +23,14 @@ def _scene(args):
 
 
 def _model_config(args):
-    from .model import HTPConfig
+    from .paper.model import HTPConfig
 
     return HTPConfig(d=args.d, n_layers=args.n_layers, leaf=args.leaf, p_off=args.p_off, n_gcn=args.n_gcn,
                      heads=args.heads, highways=not args.no_highways, shift=args.shift).validate()
 
 
 def _train(args):
-    from .train import TrainSettings, train
+    from .paper.train import TrainSettings, train
 
     names = {f.name for f in fields(TrainSettings)}
     kw = {k: v for k, v in vars(args).items() if k in names and v is not None}
@@ -40,7 +40,7 @@ def _train(args):
 
 
 def _join_logs(args):
-    from .train import join_logs
+    from .paper.train import join_logs
 
     stages = []
     for spec in args.logs:
@@ -52,8 +52,8 @@ def _join_logs(args):
 
 
 def _fit(args):
-    from .fit import fit_frame
-    from .scenes import make_frame
+    from .paper.fit import fit_frame
+    from .scenes.generator import make_frame
 
     for n in args.n:
         res = fit_frame(make_frame(n, seed=args.seed, distribution="full"), steps=args.steps, lr=args.lr,

@@ -1,4 +1,4 @@
-"""Training objectives: the cosine-Hutchinson probe loss and the SAI loss.
+"""Training objectives of both networks: the cosine-Hutchinson probe loss and the SAI loss.
 
 Both take the probes Z, the fixed products AZ (no gradient through A) and a
 callable ``apply_m`` that maps a block of vectors to M times it.

@@ -135,7 +135,7 @@ class Loaded:
         from petsc4py import PETSc
 
         db = PETSc.Options()
-        for name in set(db.getAll()) - self._before:      # the file's, the extras and set_blocks'
+        for name in set(db.getAll()) - self._before:      # the file's and the extras
             db.delValue(name)
 
     def _propagate_sub(self, db):
@@ -149,34 +149,38 @@ class Loaded:
                     db.setValue(sub, "" if value is None else value)
 
 
-def set_blocks(prefix: str, n: int, ranks: int = 1) -> int | None:
-    """Apply ``-<prefix>htp_bjacobi_leaf L``: ``-<prefix>pc_bjacobi_blocks max(ceil(N/L), ranks)``.
+@contextlib.contextmanager
+def bjacobi_blocks(prefix: str, n: int, ranks: int = 1):
+    """While open, ``-<prefix>htp_bjacobi_leaf L`` stands as ``-<prefix>pc_bjacobi_blocks max(ceil(N/L), ranks)``.
 
-    A block count set by the user or the file wins; one this function set is recomputed for the
-    new N (it notes its own value in ``-<prefix>htp_bjacobi_blocks_set``). Returns the block
-    count, or None without ``htp_bjacobi_leaf``.
+    Yields the block count, or None without ``htp_bjacobi_leaf``. A block count already in the
+    options database (the user's or the file's) wins and stays; the one set here is removed on
+    exit, so nothing is left in the global database. Open it around ``KSPSetFromOptions``.
     """
     from petsc4py import PETSc
 
     db = PETSc.Options(prefix)
     if not db.hasName("htp_bjacobi_leaf"):
-        return None
+        yield None
+        return
     leaf = db.getInt("htp_bjacobi_leaf")
     if leaf < 1:
         raise ValueError(f"-{prefix}htp_bjacobi_leaf must be positive, got {leaf}")
-    ours = db.getInt("htp_bjacobi_blocks_set", -1)
-    if db.hasName("pc_bjacobi_blocks") and db.getInt("pc_bjacobi_blocks") != ours:
-        return db.getInt("pc_bjacobi_blocks")             # set by the user: theirs wins
+    if db.hasName("pc_bjacobi_blocks"):
+        yield db.getInt("pc_bjacobi_blocks")
+        return
     blocks = max(-(-int(n) // leaf), ranks)
     db.setValue("pc_bjacobi_blocks", blocks)
-    db.setValue("htp_bjacobi_blocks_set", blocks)
-    return blocks
+    try:
+        yield blocks
+    finally:
+        db.delValue("pc_bjacobi_blocks")
 
 
 def solve(A, b, prefix: str = "", x=None, monitor=None, rtol=None) -> dict:
     """Solve ``A x = b`` with a fresh KSP configured from ``prefix``'s options; time setup and solve apart.
 
-    :func:`set_blocks` is applied for ``A``'s size first; ``rtol`` (if given) overrides the options'.
+    :func:`bjacobi_blocks` is applied for ``A``'s size; ``rtol`` (if given) overrides the options'.
 
     Setup is ``KSPSetUp`` + ``KSPSetUpOnBlocks`` (factorisation, AMG hierarchy or HTP's setup),
     solve is ``KSPSolve``; both are timed between barriers of ``A``'s communicator.
@@ -192,12 +196,12 @@ def solve(A, b, prefix: str = "", x=None, monitor=None, rtol=None) -> dict:
     from petsc4py import PETSc
 
     comm = A.getComm()
-    set_blocks(prefix, A.getSize()[0], comm.getSize())
     ksp = PETSc.KSP().create(comm=comm)
     try:
         ksp.setOptionsPrefix(prefix)
         ksp.setOperators(A, A)
-        ksp.setFromOptions()
+        with bjacobi_blocks(prefix, A.getSize()[0], comm.getSize()):
+            ksp.setFromOptions()
         if rtol:
             ksp.setTolerances(rtol=rtol)
         if monitor is not None:

@@ -44,6 +44,7 @@ import torch
 from petsc4py import PETSc
 
 from .pcoptions import HTPOptions
+from .validation import check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, attach, attached, local_rows
 from .variants import VARIANTS
 
@@ -138,7 +139,9 @@ class HTPPC:
             changed = set_torch_threads(opts.threads)
             if changed is not None:
                 self.threads_note = f"set process-wide to {opts.threads} by {self._opt(pc)}threads (was {changed})"
+            check_size(P)
             with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
+                check_matrix(P, A)                                     # a named error on every rank, or none
                 self._setup(P, A, coords, density, opts)
             self._check(pc, opts)
             self._values = values
@@ -146,23 +149,44 @@ class HTPPC:
             self._ev_setup.end()
 
     def _setup(self, P, A, coords, density, opts):
-        """Analyse when the pattern, coordinates or a pattern option changed, then the numeric step."""
+        """Analyse when the pattern, coordinates or a pattern option changed, then the numeric step.
+
+        A new analysis and its first numeric step are built aside and swapped in only when both succeed
+        (a failure leaves the previous preconditioner as it was); a failed numeric step on the current
+        analysis frees it (the PC is then cleanly empty).
+        """
         pattern = (P.getId(), opts.pattern_key())
         nonzero = A.data != 0
-        if (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
-                or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
-                        and _same_array(nonzero, self._csr[2]))):
+        new = (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
+               or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
+                       and _same_array(nonzero, self._csr[2])))
+        if _any_rank(P, new):
+            check_symmetry(P)
+            variant = self.variant
+            if variant is None or variant.opts.pattern_key() != opts.pattern_key():
+                variant = VARIANTS[opts.variant](opts, self.prefix)
+            variant.opts = opts
+            analysis = variant.analyse(P, A, coords)
+            t0 = time.perf_counter()
+            try:
+                setup = variant.numeric(analysis, P, A, density, None)
+            except Exception:
+                variant.destroy(analysis)
+                raise
             self._free()
-            if self.variant is None or self.variant.opts.pattern_key() != opts.pattern_key():
-                self.variant = VARIANTS[opts.variant](opts, self.prefix)
-            self.analysis = self.variant.analyse(P, A, coords)
+            self.variant, self.analysis, self.setup = variant, analysis, setup
             self._coords = None if coords is None else coords.copy()
             self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
             self._pattern = pattern
             self.analysis_count += 1
-        self.variant.opts = opts
-        t0 = time.perf_counter()
-        self.setup = self.variant.numeric(self.analysis, P, A, density, self.setup)
+        else:
+            self.variant.opts = opts
+            t0 = time.perf_counter()
+            try:
+                self.setup = self.variant.numeric(self.analysis, P, A, density, self.setup)
+            except Exception:
+                self._free()
+                raise
         self.setup_ms = 1e3 * (time.perf_counter() - t0)
         self.numeric_count += 1
         self.n = A.shape[0]
@@ -257,6 +281,12 @@ class HTPPC:
     def destroy(self, pc):
         """Free everything when PETSc destroys the PC."""
         self._free()
+
+
+def _any_rank(mat, flag) -> bool:
+    """``flag`` or'ed over the ranks of ``mat`` (every rank takes the same branch)."""
+    comm = mat.getComm()
+    return bool(flag) if comm.getSize() == 1 else bool(comm.tompi4py().allreduce(int(bool(flag))))
 
 
 def _same_array(a, b) -> bool:

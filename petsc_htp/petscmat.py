@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 from scipy.sparse.csgraph import connected_components
 
-from .nullspace import null_regions
+from .twolevel.nullspace import null_regions
 
 __all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace"]
 
@@ -111,7 +111,7 @@ def local_rows(mat, copy=False):
         A = sp.csr_matrix((np.ctypeslib.as_array(values, shape=(nnz,)) if nnz else np.zeros(0),
                            np.ctypeslib.as_array(ja, shape=(nnz,)) if nnz else np.zeros(0, dtype=indptr.dtype),
                            indptr), shape=mat.getSize())
-        yield _checked(mat, A)
+        yield A
     finally:
         lib.MatSeqAIJRestoreArrayRead(handle, ctypes.byref(values))
         lib.MatRestoreRowIJ(*ij)
@@ -123,29 +123,12 @@ def _c_api():
     return ctypes.CDLL(PETSc.__file__), (ctypes.c_int32 if np.dtype(PETSc.IntType).itemsize == 4 else ctypes.c_int64)
 
 
-def _checked(mat, A) -> sp.csr_matrix:
-    """``A`` (this rank's rows of ``mat``) after the checks every HTPPC setup makes: square, not empty, finite."""
-    rows, cols = mat.getSize()
-    if rows != cols:
-        raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
-    if rows == 0:
-        raise ValueError("HTPPC got an empty matrix (0 x 0)")
-    nnz = A.nnz if mat.getComm().getSize() == 1 else mat.getComm().tompi4py().allreduce(A.nnz)
-    if nnz == 0:
-        raise ValueError(f"HTPPC got an empty matrix ({rows} x {cols} with no nonzeros)")
-    bad = int(np.count_nonzero(~np.isfinite(A.data)))
-    if bad:
-        raise ValueError(f"matrix contains {bad} NaN or Inf entries; HTPPC needs a finite SPD matrix")
-    return A
-
-
 def read_csr(mat) -> sp.csr_matrix:
-    """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank), a copy."""
-    rows, cols = mat.getSize()
-    if rows != cols:
-        raise ValueError(f"HTPPC needs a square matrix, got {rows} x {cols} (non-square)")
-    if rows == 0:
-        raise ValueError("HTPPC got an empty matrix (0 x 0)")
+    """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank), a copy.
+
+    Nothing is checked here: :func:`petsc_htp.validation.check_matrix` decides on every rank together.
+    """
+    cols = mat.getSize()[1]
     src = mat
     if mat.getType() not in ("seqaij", "mpiaij"):
         aij = "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
@@ -158,8 +141,7 @@ def read_csr(mat) -> sp.csr_matrix:
     indptr, indices, data = src.getValuesCSR()                 # fresh arrays, ours to keep
     if src is not mat:
         src.destroy()
-    return _checked(mat, sp.csr_matrix((np.asarray(data, dtype=np.float64), indices, indptr),
-                                       shape=(end - start, cols)))
+    return sp.csr_matrix((np.asarray(data, dtype=np.float64), indices, indptr), shape=(end - start, cols))
 
 
 def _ownership_range(n, size, rank):

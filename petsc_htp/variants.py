@@ -19,9 +19,9 @@ A new variant is one class here and its name in :data:`VARIANTS`.
 """
 from __future__ import annotations
 
-from . import coarsenet, twolevelpc
+from .twolevel import coarsenet, composed as twolevelpc
 from .checkpoint import DEFAULT
-from .inference import HTP
+from .paper.inference import HTP
 
 
 class Paper:
@@ -66,7 +66,7 @@ class Paper:
 
 class TwoLevel:
     """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64), from PETSc parts
-    (:mod:`petsc_htp.twolevelpc`), on any number of ranks. The analysis object is the setup: its numeric
+    (:mod:`petsc_htp.twolevel.composed`), on any number of ranks. The analysis object is the setup: its numeric
     step refreshes it in place."""
 
     model = None

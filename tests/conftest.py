@@ -21,7 +21,7 @@ def grid_laplacian(nx, ny, dirichlet=0.0):
 def tiny_ckpt(tmp_path_factory):
     """A small untrained network checkpoint (its M starts out close to Jacobi)."""
     from petsc_htp import checkpoint
-    from petsc_htp.model import HTPConfig, HTPNet
+    from petsc_htp.paper.model import HTPConfig, HTPNet
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"
     checkpoint.save(path, HTPNet(HTPConfig(d=32, n_layers=1, heads=4)), {"note": "test"})
@@ -31,5 +31,5 @@ def tiny_ckpt(tmp_path_factory):
 @pytest.fixture
 def tiny_cfg():
     """A small network configuration that runs in milliseconds."""
-    from petsc_htp.model import HTPConfig
+    from petsc_htp.paper.model import HTPConfig
     return HTPConfig(d=32, n_layers=1, leaf=32, p_off=4, heads=4, n_gcn=1)

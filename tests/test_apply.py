@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 import torch
 
-from petsc_htp.apply import Factors, HTPOperator, TreeIndex, apply_flops, assemble, htp_apply
-from petsc_htp.partition import build_partition
+from petsc_htp.paper.apply import Factors, HTPOperator, TreeIndex, apply_flops, assemble, htp_apply
+from petsc_htp.paper.partition import build_partition
 
 
 def random_factors(n, leaf, coarse, seed=0):

@@ -16,10 +16,10 @@ from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E40
 from petsc_htp.bench.readme import END, START  # noqa: E402
 from petsc_htp.bench.studies import STUDIES  # noqa: E402
 from petsc_htp.bench.studies.base import Size, Study  # noqa: E402
-from petsc_htp.bench.studies.simulation import is_htp, is_twolevel, ratios  # noqa: E402
+from petsc_htp.bench.studies.simulation import RATIO_BAR, is_htp, is_twolevel, ratios  # noqa: E402
 from petsc_htp.bench.studies.stability import STRESS, boundary, natural_order, over_budget, sealed  # noqa: E402
-from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
-from petsc_htp.scenes import make_frame  # noqa: E402
+from petsc_htp.paper.model import HTPConfig, HTPNet  # noqa: E402
+from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 QUICK_PNGS = ("table4.png", "sequence.png", "scaling.png", "curves_n256.png", "curves_n512.png",
               "curves_summary.png", "stability.png")
@@ -94,7 +94,7 @@ def test_quick_table_rows_measure_every_method(quick):
     for m in CLASSICAL:
         for r in methods[m]:
             assert r["ok"] and r["reason"].startswith("CONVERGED"), r
-            assert r["relres_proj"] <= 1e-7 and r["setup_ms"] >= 0 and r["solve_ms"] > 0
+            assert r["relres_proj"] <= 1e-7
             assert r["total_ms"] == pytest.approx(r["setup_ms"] + r["solve_ms"])
     its = {m: np.mean([r["iterations"] for r in methods[m] if r["n"] == 512]) for m in CLASSICAL}
     assert its["pyamg"] < its["cg_icc"] < its["cg_jacobi"] <= its["cg_none"]
@@ -103,7 +103,7 @@ def test_quick_table_rows_measure_every_method(quick):
     none = {(r["n"], r["seed"]): r["iterations"] for r in methods["cg_none"]}
     for r in methods["cg_paper"]:       # the tiny untrained network starts out close to Jacobi
         assert r["ok"] and r["reason"].startswith("CONVERGED") and r["relres_proj"] <= 1e-7, r
-        assert r["inference_ms"] > 0 and r["pc"] == "python"
+        assert r["pc"] == "python"
         assert r["iterations"] < none[(r["n"], r["seed"])]
 
 
@@ -114,18 +114,19 @@ def test_table4_text_matches_rows(quick):
     mean_ms = np.mean([r["total_ms"] for r in rows])
     mean_its = np.mean([r["iterations"] for r in rows])
     line = next(li for li in report.splitlines() if li.startswith("| cg_jacobi |"))
-    assert f"{mean_ms:.2f} ({mean_its:,.0f})" in line or f"{mean_ms:.1f} ({mean_its:,.0f})" in line
+    shown = f"{mean_ms:.2f}" if mean_ms < 10 else f"{mean_ms:.1f}"     # two decimals below 10 ms, else one
+    assert f"{shown} ({mean_its:,.0f})" in line
 
 
 @pytest.mark.slow
 def test_curves_reach_the_tolerance(quick):
-    for r in rows_of(quick, "curves"):
-        if not r["ok"]:
-            continue
+    rows = [r for r in rows_of(quick, "curves") if r["method"] in CLASSICAL]
+    assert {r["method"] for r in rows} == set(CLASSICAL)
+    for r in rows:
+        assert r["ok"], r
         t, it, rel = np.array(r["curve"]).T
         assert np.all(np.diff(t) >= 0) and it[0] == 0 and it[-1] == r["iterations"], r["method"]
         assert rel[-1] <= 1e-8 and aggregate.time_to(r["curve"], 1e-3) <= aggregate.time_to(r["curve"], 1e-8)
-        assert t[0] >= r["setup_ms"] * 0.5
 
 
 @pytest.mark.slow
@@ -191,7 +192,8 @@ def test_failing_methods_become_failure_rows(env, tmp_path):
     short.write_text("-options_file options/common.opts\n-ksp_type cg\n-pc_type jacobi\n-ksp_max_it 2\n")
     out = tmp_path / "fail"
     argv = ["--quick", "--out", str(out), "--methods", str(bad), "cg_jacobi", str(short),
-            "--studies", "table", "stability", "--scales", "256", "--frames", "1", *env["common"]]
+            "--studies", "table", "stability", "--scales", "256", "--frames", "1",
+            "--frame-budget-ms", "1e9", *env["common"]]          # no budget: failures are the solver's own
     assert main(argv) == 0
     rows = by_method(rows_of(out, "table"))
     assert [r["failure"] for r in rows["broken_pc"]] == ["EXCEPTION"]
@@ -201,7 +203,7 @@ def test_failing_methods_become_failure_rows(env, tmp_path):
     stab = by_method(rows_of(out, "stability"))
     assert len(stab["broken_pc"]) == len(STRESS) and not any(r["ok"] for r in stab["broken_pc"])
     hard = {"inconsistent rhs", "contrast 1e8"}      # Jacobi's boundary: indefinite in floating point
-    assert all(r["ok"] or r["failure"] == "BUDGET" for r in stab["cg_jacobi"] if r["case"] not in hard)
+    assert all(r["ok"] for r in stab["cg_jacobi"] if r["case"] not in hard)
     report = (out / "report.md").read_text()
     assert "| broken_pc | ✗ exception |" in report and "| two_its | ✗ max it |" in report
     assert "Failures:" in report
@@ -274,7 +276,7 @@ def test_options_loader_follows_includes_and_sets_bjacobi_blocks(tmp_path, monke
     from petsc4py import PETSc
 
     from petsc_htp.bench.runner import load
-    from petsc_htp.methods import Loaded, set_blocks
+    from petsc_htp.methods import Loaded, bjacobi_blocks
 
     monkeypatch.chdir(tmp_path)                      # includes resolve from any working directory
     with Loaded("cg_jacobi", prefix="t_jac_"):
@@ -284,14 +286,16 @@ def test_options_loader_follows_includes_and_sets_bjacobi_blocks(tmp_path, monke
     method = resolve_method("cg_bjacobi")
     loaded = load(method)
     try:
-        assert set_blocks(method.prefix, 1000) == 8
-        assert set_blocks(method.prefix, 300) == 3         # our own count follows N
-        PETSc.Options(method.prefix).setValue("pc_bjacobi_blocks", 5)
-        assert set_blocks(method.prefix, 1000) == 5         # the user's count wins
-        PETSc.Options(method.prefix).delValue("pc_bjacobi_blocks")
-        assert set_blocks(method.prefix, 1000) == 8
         db = PETSc.Options(method.prefix)
-        assert db.getInt("pc_bjacobi_blocks") == 8 and db.getString("sub_pc_type") == "cholesky"
+        for n, blocks in ((1000, 8), (300, 3)):
+            with bjacobi_blocks(method.prefix, n) as count:
+                assert count == blocks and db.getInt("pc_bjacobi_blocks") == blocks
+            assert not db.hasName("pc_bjacobi_blocks")       # nothing left behind
+        db.setValue("pc_bjacobi_blocks", 5)
+        with bjacobi_blocks(method.prefix, 1000) as count:
+            assert count == 5                                # the user's count wins
+        assert db.getInt("pc_bjacobi_blocks") == 5 and db.getString("sub_pc_type") == "cholesky"
+        db.delValue("pc_bjacobi_blocks")
         assert not db.hasName("ksp_converged_reason")
     finally:
         loaded.__exit__(None, None, None)
@@ -399,12 +403,12 @@ def test_fastpath_study_runs_on_this_machine(env, tmp_path):
     import torch
 
     out = tmp_path / "fast"
-    assert main(["--quick", "--out", str(out), "--studies", "fastpath", "--scales", "256", "--frames", "1",
+    assert main(["--quick", "--out", str(out), "--studies", "fastpath", "--scales", "1024", "--frames", "1",
                  *env["common"]]) == 0
     rows = rows_of(out, "fastpath")
     assert [r["method"] for r in rows] == ["none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig",
                                           "twolevel_learned"]
-    assert all(r["n"] == 256 and r["us_per_iter"] > 0 for r in rows)
+    assert all(r["n"] == 1024 for r in rows)
     assert all(r["ok"] for r in rows if r["method"] != "htp")
     its = {r["method"]: r["iterations"] for r in rows}
     assert its["twolevel_eig"] < its["bjacobi"] < its["jacobi"] and its["twolevel_learned"] < its["bjacobi"]
@@ -454,7 +458,8 @@ def test_simulation_study_measures_reuse_and_the_iteration_ratio(env, tmp_path):
         assert r == pytest.approx(sim_its / gen_its) and htp == (method != "cg_jacobi")
         line = next(li for li in report.splitlines()
                     if li.startswith(f"| {method}" + (" (HTP)" if htp else " |")) and f"| {side}² |" in li)
-        assert f"{r:.2f}×" in line and (("✓" in line or "✗" in line) if htp else True)
+        verdict = ("✓" if r <= RATIO_BAR else "✗") if htp else ""
+        assert f"| {r:.2f}× | {verdict} |" in line
 
 
 def test_htp_variants_are_found_from_the_options():

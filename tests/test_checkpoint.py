@@ -4,14 +4,15 @@ import pytest
 import torch
 
 from petsc_htp import checkpoint
+from petsc_htp.paper import weights
 from petsc_htp.checkpoint import CheckpointError
-from petsc_htp.model import HTPConfig, HTPNet
+from petsc_htp.paper.model import HTPConfig, HTPNet
 
 
 def test_round_trip(tmp_path, tiny_cfg):
     net = HTPNet(tiny_cfg)
     path = checkpoint.save(tmp_path / "a.pt", net, {"steps": 3})
-    loaded, prov = checkpoint.load(path)
+    loaded, prov = weights.load(path)
     assert loaded.cfg == tiny_cfg and prov["steps"] == 3
     for (k, v), (k2, v2) in zip(net.state_dict().items(), loaded.state_dict().items()):
         assert k == k2 and torch.equal(v, v2)
@@ -20,28 +21,28 @@ def test_round_trip(tmp_path, tiny_cfg):
 
 def test_missing_corrupt_version_and_mismatch(tmp_path, tiny_cfg):
     with pytest.raises(CheckpointError, match="does not exist"):
-        checkpoint.load(tmp_path / "nope.pt")
+        weights.load(tmp_path / "nope.pt")
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a checkpoint at all")
     with pytest.raises(CheckpointError, match="corrupt or unreadable"):
-        checkpoint.load(bad)
+        weights.load(bad)
     good = checkpoint.save(tmp_path / "good.pt", HTPNet(tiny_cfg), {})
     truncated = tmp_path / "trunc.pt"
     truncated.write_bytes(good.read_bytes()[:500])
     with pytest.raises(CheckpointError, match="corrupt"):
-        checkpoint.load(truncated)
+        weights.load(truncated)
     obj = checkpoint.read(good)
     obj["version"] = 99
     torch.save(obj, tmp_path / "v99.pt")
     with pytest.raises(CheckpointError, match="version 99"):
-        checkpoint.load(tmp_path / "v99.pt")
+        weights.load(tmp_path / "v99.pt")
     with pytest.raises(CheckpointError, match="does not match"):
-        checkpoint.load(good, expect=HTPConfig())
+        weights.load(good, expect=HTPConfig())
     obj = checkpoint.read(good)
     obj["config"]["d"] = 64
     torch.save(obj, tmp_path / "wrong.pt")
     with pytest.raises(CheckpointError, match="do not match"):
-        checkpoint.load(tmp_path / "wrong.pt")
+        weights.load(tmp_path / "wrong.pt")
 
 
 def test_warm_start_copies_weights_and_keeps_new_ones(tmp_path, tiny_cfg):
@@ -53,11 +54,11 @@ def test_warm_start_copies_weights_and_keeps_new_ones(tmp_path, tiny_cfg):
     torch.manual_seed(1)
     dst = HTPNet(tiny_cfg)
     fresh = dst.leaf_pos[0].weight.clone()
-    assert checkpoint.warm_start(dst, tmp_path / "old.pt")["steps"] == 7
+    assert weights.warm_start(dst, tmp_path / "old.pt")["steps"] == 7
     assert torch.equal(dst.slot, src.slot) and torch.equal(dst.leaf_pos[0].weight, fresh)
     with pytest.raises(CheckpointError, match="does not match"):
-        checkpoint.warm_start(HTPNet(dataclasses.replace(tiny_cfg, d=64)), tmp_path / "old.pt")
+        weights.warm_start(HTPNet(dataclasses.replace(tiny_cfg, d=64)), tmp_path / "old.pt")
     obj["state_dict"]["surplus"] = torch.zeros(1)
     torch.save(obj, tmp_path / "surplus.pt")
     with pytest.raises(CheckpointError, match="lacks"):
-        checkpoint.warm_start(dst, tmp_path / "surplus.pt")
+        weights.warm_start(dst, tmp_path / "surplus.pt")

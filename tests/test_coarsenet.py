@@ -1,4 +1,4 @@
-"""Tests for the learned coarse space (petsc_htp.coarsenet, petsc_htp.coarsetrain)."""
+"""Tests for the learned coarse space (petsc_htp.twolevel.coarsenet, petsc_htp.twolevel.coarsetrain)."""
 import json
 
 import numpy as np
@@ -6,14 +6,14 @@ import pytest
 import scipy.sparse as sp
 import torch
 
-from petsc_htp import coarsenet
+from petsc_htp.twolevel import coarsenet
 from petsc_htp.checkpoint import CheckpointError
-from petsc_htp.coarsenet import CoarseConfig, CoarseNet, learned_basis
-from petsc_htp.coarsetrain import TrainSettings, context_loss, make_context, train
-from petsc_htp.leaves import choose_leaves
+from petsc_htp.twolevel.coarsenet import CoarseConfig, CoarseNet, learned_basis
+from petsc_htp.twolevel.coarsetrain import TrainSettings, context_loss, make_context, train
+from petsc_htp.twolevel.leaves import choose_leaves
 from petsc_htp.pcg import pcg
-from petsc_htp.scenes import make_frame
-from petsc_htp.twolevel import analyse, factor
+from petsc_htp.scenes.generator import make_frame
+from petsc_htp.twolevel.batched import analyse, factor
 
 SEED = 1_000_000          # the first held-out test frame
 TINY = CoarseConfig(rank=3, width=8, heads=2, gcn_layers=1, attn_layers=1, noise_channels=2)
@@ -50,7 +50,7 @@ def test_shapes_padding_and_constant_column():
         assert lv.sizes.min() < lv.max_size                        # there is padding to check
         assert torch.all(P[an.mask == 0] == 0) and torch.isfinite(P).all()
         assert torch.all(P[:, :, 0] == an.mask)                     # the leaf constant comes first
-        assert factor(an, A, coarse="given", basis=P).rank == 3
+        assert factor(an, A, coarse="given", basis=P).rank == 3 + an.constants.shape[2]     # and the pieces
 
 
 def test_basis_is_invariant_to_scaling_a():

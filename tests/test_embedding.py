@@ -4,9 +4,9 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.csgraph import shortest_path
 
-from petsc_htp.embedding import bfs_levels, grid_coordinates
-from petsc_htp.leaves import choose_leaves
-from petsc_htp.scenes import make_frame
+from petsc_htp.twolevel.embedding import bfs_levels, grid_coordinates
+from petsc_htp.twolevel.leaves import choose_leaves
+from petsc_htp.scenes.generator import make_frame
 
 from conftest import grid_laplacian
 

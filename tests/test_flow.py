@@ -1,4 +1,4 @@
-"""Two-phase flow: the physics (petsc_htp.flow) and the PETSc driver (examples/multiphase_flow.py)."""
+"""Two-phase flow: the physics (petsc_htp.sim.flow) and the PETSc driver (examples/multiphase_flow.py)."""
 import json
 import math
 import subprocess
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.sparse.linalg import cg
 
-from petsc_htp.flow import Flow
+from petsc_htp.sim.flow import Flow
 from petsc_htp.morton import morton_code
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,11 +125,38 @@ def test_failed_solve_exits_nonzero(tmp_path):
 
 @pytest.mark.parametrize("args, message", [(["-nx", "0"], "nx must be an integer >= 8"),
                                            (["-reuse_every", "-1"], "-reuse_every must be >= 0"),
+                                           (["-frames", "0"], "-frames must be at least 1"),
                                            (["-density_ratio", "0.5"], "density_ratio must be")])
 def test_bad_options(tmp_path, args, message):
     proc = run_example(tmp_path, "-options_file", "options/cg_jacobi.opts", *args)
     assert proc.returncode == 2
     assert message in proc.stderr
+
+
+def test_reuse_policy_ignores_a_rebuild_that_did_not_iterate():
+    from petsc_htp.sim.simulation import ReusePolicy
+
+    policy = ReusePolicy(every=4, growth=1.5)
+    assert policy.rebuild() and policy.cap() is None
+    policy.record(True, 0)                          # converged at its start: no reference yet
+    assert not policy.rebuild() and policy.cap() is None
+    policy.record(False, 0)
+    policy.record(False, 0)
+    policy.record(False, 0)
+    assert policy.rebuild()
+    policy.record(True, 20)
+    assert policy.cap() == 30
+    policy.record(True, 0)                          # keeps the last reference, not a cap of 0 or 1
+    assert policy.cap() == 30
+
+
+def test_simulate_rejects_zero_frames(tmp_path):
+    from petsc_htp.sim.simulation import simulate
+
+    with pytest.raises(ValueError, match="frames must be at least 1"):
+        simulate({"nx": 16, "ny": 16, "frames": 0, "density_ratio": 10, "seed": 0, "reuse_every": 0,
+                  "reuse_growth": 2, "out": tmp_path, "animate": False}, "x")
+    assert not list(tmp_path.iterdir())
 
 
 # ------------------------------------------------------------- physics only

@@ -2,8 +2,8 @@
 import numpy as np
 import torch
 
-from petsc_htp.inference import HTP, smallest_ritz_value
-from petsc_htp.scenes import make_frame
+from petsc_htp.paper.inference import HTP, smallest_ritz_value
+from petsc_htp.scenes.generator import make_frame
 
 
 def _ritz(A, **kw):

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-from petsc_htp.apply import Factors, assemble
-from petsc_htp.features import build_input
-from petsc_htp.model import HTPConfig, HTPNet
-from petsc_htp.scenes import make_frame
+from petsc_htp.paper.apply import Factors, assemble
+from petsc_htp.paper.features import build_input
+from petsc_htp.paper.model import HTPConfig, HTPNet
+from petsc_htp.scenes.generator import make_frame
 
 
 def test_default_size_matches_paper():

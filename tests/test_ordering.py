@@ -83,7 +83,7 @@ def test_morton_permutation_is_stable_and_validates():
 @pytest.mark.parametrize("n", [2048, 3000])
 def test_non_square_scene_order_is_recovered_from_coordinates(n):
     """Cell centres of a W x H grid (W != H, truncated) give the scene's integer Morton order back."""
-    from petsc_htp.scenes import make_frame
+    from petsc_htp.scenes.generator import make_frame
 
     coords = make_frame(n, seed=1).coords
     assert is_morton_sorted(coords)

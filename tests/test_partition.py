@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from petsc_htp.partition import build_partition
+from petsc_htp.paper.partition import build_partition
 
 
 @pytest.mark.parametrize("n,leaf", [(1, 8), (8, 8), (9, 8), (40, 8), (64, 8), (100, 8), (1000, 128), (16384, 128)])

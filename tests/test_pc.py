@@ -15,11 +15,11 @@ from petsc4py import PETSc  # noqa: E402
 
 import petsc_htp  # noqa: E402
 from petsc_htp import checkpoint  # noqa: E402
-from petsc_htp.model import HTPConfig, HTPNet  # noqa: E402
-from petsc_htp.dataset import TEST_SEED_OFFSET  # noqa: E402
+from petsc_htp.paper.model import HTPConfig, HTPNet  # noqa: E402
+from petsc_htp.scenes.dataset import TEST_SEED_OFFSET  # noqa: E402
 from petsc_htp.methods import reason_name  # noqa: E402
 from petsc_htp.petscmat import frame_mat as _frame_mat  # noqa: E402
-from petsc_htp.scenes import make_frame  # noqa: E402
+from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"

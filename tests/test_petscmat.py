@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("petsc4py")
 from petsc_htp.petscmat import frame_mat, frame_vec  # noqa: E402
-from petsc_htp.scenes import make_frame  # noqa: E402
+from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 
 def test_petsc_mat_matches_scipy():
@@ -39,7 +39,7 @@ def test_petsc_mat_matches_scipy():
 MPI_SCRIPT = """
 import numpy as np
 from petsc_htp.petscmat import frame_mat, frame_vec
-from petsc_htp.scenes import make_frame
+from petsc_htp.scenes.generator import make_frame
 frame = make_frame(301, seed=3)
 mat = frame_mat(frame)
 start, end = mat.getOwnershipRange()

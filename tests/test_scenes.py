@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from petsc_htp.dataset import dataset_seeds, load_dataset
-from petsc_htp.sceneplot import plot_frame
-from petsc_htp.scenes import (
+from petsc_htp.scenes.dataset import dataset_seeds, load_dataset
+from petsc_htp.scenes.plot import plot_frame
+from petsc_htp.scenes.generator import (
     DISTRIBUTIONS,
     GENERATOR_VERSION,
     assemble_operator,

@@ -3,9 +3,9 @@ import json
 
 import pytest
 
-from petsc_htp import checkpoint
-from petsc_htp.model import HTPConfig
-from petsc_htp.train import AutoStop, TrainSettings, train
+from petsc_htp.paper import weights
+from petsc_htp.paper.model import HTPConfig
+from petsc_htp.paper.train import AutoStop, TrainSettings, train
 
 
 @pytest.mark.slow
@@ -19,17 +19,17 @@ def test_short_training_lowers_loss_and_iterations(tmp_path):
     losses = [r["loss"] for r in rows if "loss" in r]
     iters = [r["pcg_iters"] for r in rows if "pcg_iters" in r]
     assert losses[-1] < losses[0]
-    net, prov = checkpoint.load(path)
+    net, prov = weights.load(path)
     assert net.cfg == cfg and prov["steps"] == 120
     untrained = prov["heldout_untrained"]["pcg_iters"]
     assert min(iters[-3:]) < untrained, (iters, untrained)
     # resume continues from the saved step
     s.max_steps, s.resume = 130, True
     train(cfg, s)
-    assert checkpoint.load(tmp_path / "run" / "final.pt")[1]["steps"] == 130
+    assert weights.load(tmp_path / "run" / "final.pt")[1]["steps"] == 130
     # fine-tuning starts from the trained weights with a fresh optimizer and records its parent
     ft = dataclasses.replace(s, init=str(path), max_steps=10, resume=False, out=str(tmp_path / "ft"))
-    prov = checkpoint.load(train(cfg, ft))[1]
+    prov = weights.load(train(cfg, ft))[1]
     assert prov["init"]["steps"] == 130 and prov["steps"] == 10
     assert prov["heldout_untrained"]["pcg_iters"] < untrained
 
@@ -47,7 +47,7 @@ def test_bad_loss_name(tmp_path):
 
 
 def test_join_logs_continues_steps_and_wall_clock(tmp_path):
-    from petsc_htp.train import join_logs
+    from petsc_htp.paper.train import join_logs
 
     a, b = tmp_path / "a.jsonl", tmp_path / "b.jsonl"
     a.write_text('{"step": 10, "loss": 0.5, "wall_s": 5.0}\n{"step": 20, "wall_s": 9.0, "pcg_iters": 40}\n')

@@ -11,10 +11,10 @@ from petsc4py import PETSc  # noqa: E402
 import petsc_htp  # noqa: E402
 from petsc_htp.bench.studies.stability import problems as stability_problems  # noqa: E402
 from petsc_htp.checks import min_rayleigh  # noqa: E402
-from petsc_htp.dataset import load_dataset  # noqa: E402
-from petsc_htp.leaves import choose_leaves  # noqa: E402
+from petsc_htp.scenes.dataset import load_dataset  # noqa: E402
+from petsc_htp.twolevel.leaves import choose_leaves  # noqa: E402
 from petsc_htp.methods import reason_name  # noqa: E402
-from petsc_htp.twolevel import analyse, factor  # noqa: E402
+from petsc_htp.twolevel.batched import analyse, factor  # noqa: E402
 
 _PREFIXES = itertools.count()
 
@@ -151,8 +151,51 @@ def test_values_change_reuses_the_analysis(frames):
     assert ksp.getConvergedReason() > 0 and abs(ksp.getIterationNumber() - its1) <= 1
 
 
+def resolve(ksp, b):
+    """Solve again on the KSP's current operator; (reason, iterations)."""
+    rhs, x = ksp.getOperators()[0].createVecs()
+    rhs.setArray(b)
+    x.set(0)
+    ksp.solve(rhs, x)
+    return ksp.getConvergedReason(), ksp.getIterationNumber()
+
+
+def test_a_failed_setup_leaves_the_previous_pc_usable_and_destroy_frees_it(frames):
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    reason, its, _, ksp = solve(mat, frame.b)
+    ctx = ksp.getPC().getPythonContext()
+    setup = ctx.setup
+    j = frame.A.indices[frame.A.indptr[7]]
+    good = mat.getValue(7, j)
+    mat.setValue(7, j, np.nan)                         # new values, same pattern: the check names them
+    mat.assemble()
+    with pytest.raises(PETSc.Error) as err:
+        resolve(ksp, frame.b)
+    assert "NaN or Inf entries in 1 row(s), the first global row 7" in str(err.value.__cause__)
+    assert ctx.setup is setup and ctx.analysis_count == 1     # the previous preconditioner is kept
+    mat.setValue(7, j, good)
+    mat.assemble()
+    assert resolve(ksp, frame.b) == (reason, its)
+    assert (ctx.analysis_count, ctx.numeric_count) == (1, 2)
+
+    big = abs(frame.A).max()
+    bad = sp.csr_matrix(frame.A + sp.csr_matrix(([-big], ([3], [900])), shape=frame.A.shape))
+    ksp.setOperators(other := petsc_mat(bad, null=False), other)   # a new, non-symmetric pattern
+    other.setOption(PETSc.Mat.Option.SYMMETRIC, False)
+    with pytest.raises(PETSc.Error) as err:
+        resolve(ksp, frame.b)
+    assert "not symmetric" in str(err.value.__cause__)
+    assert ctx.setup is not None and ctx.analysis_count == 1  # the new analysis was built aside, then freed
+    ksp.setOperators(mat, mat)
+    assert resolve(ksp, frame.b)[0] > 0
+    ksp.getPC().reset()
+    assert ctx.setup is None and ctx.analysis is None
+    ksp.destroy()
+
+
 def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
-    from petsc_htp.scenes import assemble_operator, morton_cells
+    from petsc_htp.scenes.generator import assemble_operator, morton_cells
 
     ix, iy = morton_cells(4096)
     rho = np.where((ix // 4 + iy // 4) % 2 == 0, 1.0, 1e3)       # 4 x 4 patches at contrast 1e3
@@ -175,7 +218,7 @@ def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
 
 
 def test_coarse_space_every_keeps_the_space_between_refreshes():
-    from petsc_htp.flow import Flow
+    from petsc_htp.sim.flow import Flow
 
     sim = Flow(32, 32)
     sim.advance()
@@ -219,6 +262,39 @@ def test_min_rayleigh_positive_on_every_stability_case():
                 petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
             reason, _, _, ksp = solve(mat, frame.b, htp_coarse=coarse, ksp_max_it=1)
             assert ksp.getPC().getPythonContext().setup.check(8) == "", (prob.case, coarse)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("coarse, leaf, rank", [("const", 16, 1), ("eig", 32, 2)])
+def test_torch_and_petsc_back_ends_agree_on_every_stability_case(coarse, leaf, rank):
+    """One two-level method, two back-ends: the same iterations (within 1) on each stress case, no shift patched.
+
+    PETSc projects b onto the range of the Mat's null space (one constant per region) before CG, and each
+    M r after the PC (KSP_PCApply); the torch PCG gets the same projections.
+    """
+    from scipy.sparse.csgraph import connected_components
+
+    from petsc_htp.pcg import pcg
+    from petsc_htp.petscmat import frame_mat
+
+    for prob in stability_problems(4096, 1, 8192, 1000, 16384):
+        frame, rtol = prob.frame, prob.rtol or 1e-8
+        if prob.case == "contrast 1e8":
+            continue                     # past double precision: neither back-end converges (stability map)
+        coords = frame.coords if prob.attach else None
+        _, regions = connected_components(frame.A, directed=False)
+        def project(v):
+            return v - (np.bincount(regions, v) / np.bincount(regions))[regions]
+
+        M = factor(analyse(frame.A, choose_leaves(frame.A, coords, leaf=leaf)), frame.A, coarse, rank)
+        torch_res = pcg(frame.A, project(frame.b), lambda r: project(M.apply(r)), rtol)
+        mat = frame_mat(frame, PETSc.COMM_SELF)
+        if prob.attach:
+            petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
+        reason, its, _, _ = solve(mat, frame.b, htp_coarse=coarse, htp_leaf=leaf, htp_coarse_rank=rank,
+                                  ksp_rtol=rtol)
+        assert torch_res.reason == "converged" and reason > 0, (prob.case, torch_res.reason, reason_name(reason))
+        assert abs(its - torch_res.iterations) <= 1, (prob.case, its, torch_res.iterations)
 
 
 def test_coarse_space_holds_piece_constants_and_orthonormal_modes(frames):
@@ -269,7 +345,7 @@ def test_twolevel_checks_its_factorisations_without_probes_by_default(frames, tm
 
 def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
     """HTPPC's learned space and twolevel's 'seeded' one refine the same network vectors the same way."""
-    from petsc_htp import coarsenet
+    from petsc_htp.twolevel import coarsenet
     from petsc_htp.pcg import pcg
 
     frame = frames[1]
@@ -277,6 +353,6 @@ def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
     petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
     reason, its, relres, _ = solve(mat, frame.b, htp_coarse="learned", htp_leaf=128)
     an = analyse(frame.A, choose_leaves(frame.A, frame.coords))
-    basis = coarsenet.learned_basis(coarsenet.cached()[0], an, frame.A, frame.coords, frame.rho)
+    basis = coarsenet.learned_vectors(coarsenet.cached()[0], an, frame.A, frame.coords, frame.rho)
     torch_its = pcg(frame.A, frame.b, factor(an, frame.A, "seeded", basis=basis).apply, 1e-8).iterations
     assert reason > 0 and relres <= 1.01e-8 and abs(its - torch_its) <= 2, (its, torch_its)

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..dataset import dataset_seeds, load_dataset
-from ..scenes import Frame
+from ..scenes.dataset import dataset_seeds, load_dataset
+from ..scenes.generator import Frame
 
 
 @dataclass

@@ -73,7 +73,7 @@ def collect(ctx, argv, quick, selected) -> dict:
     """Everything about the machine and a run of ``selected`` studies in context ``ctx``."""
     import torch
 
-    from ..inference import resolve_device
+    from ..paper.inference import resolve_device
     from ..methods import common_setting
 
     meta = {

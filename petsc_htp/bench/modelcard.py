@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import checkpoint
+from ..paper import weights
 from .aggregate import cells
 from .markdown import md_table, n_label
 from .store import read_json, read_jsonl, study_path, write_text
@@ -55,7 +56,7 @@ def render(results: Path) -> str:
     """Markdown model card from a results folder (table study, meta.json, optional fit.jsonl)."""
     meta = read_json(results / "meta.json")
     rows = read_jsonl(study_path(results, "table"))
-    net, prov = checkpoint.load(checkpoint.DEFAULT)
+    net, prov = weights.load(checkpoint.DEFAULT)
     table, verdict = iteration_table(rows)
     met = all(verdict.get(n, {}).get("ratio", np.inf) <= BAR for n in BAR_SCALES)
     clean = all(v["failures"] == 0 for v in verdict.values())

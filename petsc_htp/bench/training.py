@@ -6,13 +6,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import checkpoint
-from ..model import HTPConfig
+from ..paper import weights
+from ..paper.model import HTPConfig
 from . import store
 
 
 @dataclass(frozen=True)
 class Budget:
-    """How long each study model trains (passed to :class:`petsc_htp.train.TrainSettings`)."""
+    """How long each study model trains (passed to :class:`petsc_htp.paper.train.TrainSettings`)."""
 
     minutes: float | None
     steps: int
@@ -54,7 +55,7 @@ def model_key(cfg, distribution, loss) -> str:
 
 def trained_checkpoint(out, cfg, distribution, loss, budget) -> Path:
     """Train (or reuse, when trained before with the same budget) a model; return its final checkpoint."""
-    from ..train import TrainSettings, train
+    from ..paper.train import TrainSettings, train
 
     folder = Path(out) / "models" / model_key(cfg, distribution, loss)
     final, stamp = folder / "final.pt", folder / "budget.json"
@@ -74,7 +75,7 @@ def trained_checkpoint(out, cfg, distribution, loss, budget) -> Path:
 
 def model_info(path) -> dict:
     """Configuration, parameter count and training provenance of a checkpoint, for result rows."""
-    net, prov = checkpoint.load(path)
+    net, prov = weights.load(path)
     cfg = net.cfg
     return {"checkpoint": str(path), "params": net.n_params(), "d": cfg.d, "n_layers": cfg.n_layers,
             "highways": cfg.highways, "loss": prov.get("loss", "cosine"), "train_steps": prov.get("steps"),

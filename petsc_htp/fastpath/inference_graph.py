@@ -5,7 +5,7 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from ..features import input_values
+from ..paper.features import input_values
 from .timing import _capture, _timed
 
 

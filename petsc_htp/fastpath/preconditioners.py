@@ -7,14 +7,20 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
+from ..pcoptions import HTPOptions
 from .timing import _capture, _device, _sync, _timed
 
 METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig", "twolevel_learned")
+# (leaf size, coarse vectors per leaf) of the two-level coarse spaces: options/cg_twolevel_const.opts, HTPPC's
+# defaults (options/cg_htp.opts) and options/cg_twolevel_learned.opts (the network's rank)
+SETTINGS = {"const": (16, 1), "eig": (HTPOptions.leaf, HTPOptions.coarse_rank), "learned": (128, None)}
 
 
 def _constant_null(A) -> bool:
-    """True when A 1 = 0 (row sums below 1e-10 max|diag|): constants span a null space."""
-    return bool(np.abs(A @ np.ones(A.shape[0])).max() <= 1e-10 * np.abs(A.diagonal()).max())
+    """True when A's row sums vanish (the two-level method's rule): constants span a null space."""
+    from ..twolevel.nullspace import null_regions
+
+    return bool(null_regions(A, np.zeros(A.shape[0], dtype=np.int64)).all())
 
 
 class Preconditioner:
@@ -148,31 +154,33 @@ class HTPPreconditioner(Preconditioner):
 
 
 class TwoLevelPreconditioner(Preconditioner):
-    """The two-level variant (:mod:`petsc_htp.twolevel`): analysis once, factor per operator, float64 inside.
+    """The two-level variant (:mod:`petsc_htp.twolevel.batched`): analysis once, factor per operator, float64 inside.
 
     The solver runs in the leaves' ordering ``perm``; the float32 solver vectors are widened for
-    the float64 apply, whose buffers stay fixed so a captured graph stays valid.
+    the float64 apply, whose buffers stay fixed so a captured graph stays valid. The leaf size and rank
+    of each coarse space are those of HTPPC's options files (:data:`SETTINGS`).
     """
 
-    def __init__(self, A, coarse="eig", rank=4, coords=None, density=None, device="auto"):
-        from ..leaves import choose_leaves
-        from ..twolevel import analyse
+    def __init__(self, A, coarse="eig", rank=None, coords=None, density=None, device="auto"):
+        from ..twolevel.batched import analyse
+        from ..twolevel.leaves import choose_leaves
 
         super().__init__(A, coords, density, device)
-        self.coarse, self.rank = coarse, rank
-        self.analysis = analyse(self.A, choose_leaves(self.A, coords), self.device)
+        leaf, default_rank = SETTINGS[coarse]
+        self.coarse, self.rank = coarse, rank or default_rank
+        self.analysis = analyse(self.A, choose_leaves(self.A, coords, leaf=leaf), self.device)
         self.perm = self.analysis.leaves.perm
         self.op = None
         self.r64 = torch.zeros(self.n, dtype=torch.float64, device=self.device)
         self.z64 = torch.zeros_like(self.r64)
 
     def _setup(self):
-        from ..twolevel import factor
+        from ..twolevel.batched import factor
 
         if self.coarse == "learned":                   # the network's vectors, refined as in HTPPC
-            from ..coarsenet import cached, learned_basis
+            from ..twolevel.coarsenet import cached, learned_vectors
 
-            basis = learned_basis(cached()[0], self.analysis, self.A, self.coords, self.density)
+            basis = learned_vectors(cached()[0], self.analysis, self.A, self.coords, self.density)
             new = factor(self.analysis, self.A, "seeded", basis=basis)
         else:
             new = factor(self.analysis, self.A, self.coarse, self.rank)
@@ -191,7 +199,7 @@ def make_preconditioner(method, A, htp=None, coords=None, density=None, device="
     """Build (without setting up) preconditioner ``method`` (one of :data:`METHODS`) for ``A``."""
     classes = {"none": Preconditioner, "jacobi": Jacobi, "bjacobi": BlockJacobi}
     if method.startswith("twolevel_"):
-        return TwoLevelPreconditioner(A, method.split("_", 1)[1], 4, coords, density, device)
+        return TwoLevelPreconditioner(A, method.split("_", 1)[1], None, coords, density, device)
     if method == "htp":
         if htp is None:
             raise ValueError("method 'htp' needs a loaded HTP network (htp=None given)")

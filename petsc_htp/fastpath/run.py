@@ -8,7 +8,7 @@ import sys
 import torch
 
 from ..atomic import write_text
-from ..inference import HTP
+from ..paper.inference import HTP
 from .inference_graph import capture_inference
 from .preconditioners import METHODS, make_preconditioner
 from .solver import GraphPCG
@@ -66,7 +66,7 @@ def write_jsonl(rows, path):
 
 def main(argv=None) -> int:
     """Command line: benchmark the fast path on generated frames and write JSONL rows."""
-    from ..scenes import make_frame
+    from ..scenes.generator import make_frame
 
     doc = sys.modules[__package__].__doc__   # the package docstring
     ap = argparse.ArgumentParser(prog="python -m petsc_htp.fastpath", description=doc.splitlines()[0])

@@ -5,7 +5,7 @@ import time
 
 import torch
 
-from ..inference import resolve_device
+from ..paper.inference import resolve_device
 
 
 def _device(device) -> torch.device:

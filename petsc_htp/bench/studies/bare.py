@@ -1,4 +1,4 @@
-"""A bare single solve: the DMDA program's matrix (:func:`petsc_htp.gallery.variable_poisson`), nothing attached.
+"""A bare single solve: the DMDA program's matrix (:func:`petsc_htp.scenes.gallery.variable_poisson`), nothing attached.
 
 Each frame is a fresh Mat and KSP with no coordinates, density or null space, so the preconditioner's
 whole setup (HTPPC's analysis included) is in the frame's time, as in ``examples/dmda_poisson.py``. One
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...gallery import variable_poisson
-from ...scenes import Frame
+from ...scenes.gallery import variable_poisson
+from ...scenes.generator import Frame
 from ..aggregate import cells
 from ..cases import Problem
 from ..markdown import md_table, ms, n_label

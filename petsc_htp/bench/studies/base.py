@@ -94,7 +94,7 @@ class Context:
     @cached_property
     def budget(self):
         """The :class:`~petsc_htp.bench.training.Budget` of every study model."""
-        from ...inference import resolve_device
+        from ...paper.inference import resolve_device
         from ..training import Budget
 
         s = self.settings

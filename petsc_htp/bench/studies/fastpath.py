@@ -13,7 +13,7 @@ CHART = "fastpath.png"
 def run(scales, frames, ckpt, device) -> list:
     """Every fast-path method on ``frames`` held-out frames per N; the first frame per N is a discarded warm-up."""
     from ...fastpath import METHODS, run_fastpath
-    from ...inference import HTP, resolve_device
+    from ...paper.inference import HTP, resolve_device
 
     dev = resolve_device(device)
     methods, htp, note = list(METHODS), None, None

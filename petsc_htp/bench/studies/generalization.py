@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from ...scenes import make_frame
+from ...scenes.generator import make_frame
 from ..aggregate import cells
 from ..cases import Problem, held_out_frames, held_out_seeds
 from ..markdown import image, its, md_table, ms, n_label, pm, ratio

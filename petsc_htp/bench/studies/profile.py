@@ -72,7 +72,7 @@ def sources(out, cfg, budget, log_path=None, ckpt=None):
 
 def run(log_path, ckpt, spectrum_n) -> list:
     """Training profile (log rows + baselines) and the spectra of M A on one frame of ``spectrum_n``."""
-    from ...inference import HTP
+    from ...paper.inference import HTP
     from ..spectrum import spectrum_rows
 
     rows = [{"kind": "source", "train_log": str(log_path), "checkpoint": str(ckpt)}]

@@ -1,7 +1,7 @@
 """Sequence mode: one nonzero pattern and new values every frame, one persistent Mat and KSP per method.
 
 The held-out test frames of one N share the generator's pattern. Every PETSc method solves them through a
-:class:`petsc_htp.simulation.PressureSolver` (the frame's values set into its Mat, coordinates and density
+:class:`petsc_htp.sim.simulation.PressureSolver` (the frame's values set into its Mat, coordinates and density
 attached, x0 = 0), so PETSc runs its preconditioner's setup again each frame on the same pattern: GAMG
 with its interpolation reused (``cg_gamg.opts``), HTPPC's numeric step only. pyamg and AMGCL rebuild from
 scratch. Methods take turns frame by frame; a warm-up frame per method and N, on a solver of its own, is
@@ -49,7 +49,7 @@ def _solvers(methods, first, extra) -> tuple:
     """Options loaded and a persistent solver for every PETSc method (after one warm-up frame each)."""
     from scipy.sparse.csgraph import connected_components
 
-    from ...simulation import PressureSolver
+    from ...sim.simulation import PressureSolver
     from ..runner import load
 
     regions = connected_components(first.A, directed=False)[1]

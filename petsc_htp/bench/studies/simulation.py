@@ -1,8 +1,8 @@
 """Simulation: every method over a run of the two-phase flow, one persistent KSP, previous pressure as guess.
 
-The run is recorded once per grid side (the pressure systems of :class:`petsc_htp.flow.Flow`,
+The run is recorded once per grid side (the pressure systems of :class:`petsc_htp.sim.flow.Flow`,
 projected with ``cg_gamg``) and replayed by every method through
-:class:`petsc_htp.simulation.PressureSolver` and :class:`~petsc_htp.simulation.ReusePolicy`, so
+:class:`petsc_htp.sim.simulation.PressureSolver` and :class:`~petsc_htp.sim.simulation.ReusePolicy`, so
 that all of them solve the same frames. HTP variants run with and without PC reuse; two-level ones
 also rebuilt every frame with their coarse space kept for k frames (``-htp_coarse_space_every k``).
 """
@@ -12,9 +12,9 @@ import math
 
 import numpy as np
 
-from ...flow import Flow
+from ...sim.flow import Flow
 from ...methods import Loaded
-from ...scenes import Frame
+from ...scenes.generator import Frame
 from ..aggregate import FPS_BUDGETS, group, ordered
 from ..cases import Problem, held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, ratio
@@ -57,7 +57,7 @@ def recorded_run(side, frames, seed=0):
     """
     from petsc4py import PETSc
 
-    from ...simulation import PressureSolver
+    from ...sim.simulation import PressureSolver
     from ..runner import PRINT_ONLY
 
     sim = Flow(side, side, density_ratio=DENSITY_RATIO, seed=seed)
@@ -100,7 +100,7 @@ def frame_row(res, rtol) -> dict:
 def replay(method, systems, regions, reuse, extra, keep=0) -> list:
     """One method over the recorded run (reuse: rebuild every ``reuse`` frames, 0 = every frame;
     keep: ``-htp_coarse_space_every keep``)."""
-    from ...simulation import PressureSolver, ReusePolicy
+    from ...sim.simulation import PressureSolver, ReusePolicy
     from ..runner import load
 
     rows, loaded = [], load(method, list(extra) + ([("htp_coarse_space_every", str(keep))] if keep else []))

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ...scenes import Frame, make_frame
+from ...scenes.generator import Frame, make_frame
 from ..aggregate import first_failure, group, ordered, summary
 from ..cases import Problem, held_out_frames, held_out_seeds
 from ..markdown import image, its, md_table, n_label, sci

@@ -1,7 +1,7 @@
 """Pictures of benchmark frames: density, right-hand side and pressure with velocity arrows."""
 import numpy as np
 
-from .atomic import atomic_open
+from ..atomic import atomic_open
 
 
 def _image_gradient(image, spacing, axis):

@@ -21,12 +21,13 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from . import checkpoint
-from .checks import probe_reason
+from .. import checkpoint
+from . import weights
+from ..checks import probe_reason
 from .apply import HTPOperator
 from .features import InputStructure, input_structure, input_values
 from .model import HTPNet
-from .ordering import choose_ordering, permuted_pattern
+from ..ordering import choose_ordering, permuted_pattern
 from .partition import Partition
 
 
@@ -228,7 +229,7 @@ class HTP:
     @classmethod
     def load(cls, path=None, device="auto", threads=None) -> "HTP":
         """Load a checkpoint (the shipped one when ``path`` is None)."""
-        net, prov = checkpoint.load(path)
+        net, prov = weights.load(path)
         return cls(net, prov, device, threads)
 
     @classmethod

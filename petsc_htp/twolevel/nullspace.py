@@ -70,6 +70,25 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves) -> Pieces:
                   label - first[leaf_of_row])
 
 
+def graph_components(A) -> tuple:
+    """(number, label of each row) of the connected components of a scipy matrix's nonzero entries."""
+    graph = A if np.all(A.data != 0) else A.multiply(A != 0).tocsr()
+    return connected_components(graph, directed=False)
+
+
+def first_rows(label, marked) -> np.ndarray:
+    """The first row (in ``label``'s order) of every marked piece (``marked``: bool per piece)."""
+    first = np.full(marked.size, -1)
+    first[label[::-1]] = np.arange(label.size)[::-1]
+    return first[marked]
+
+
+def ground(values, diag, rows):
+    """Raise the diagonal entries ``values[diag[rows]]`` by their own magnitude (in place): a grounded piece's
+    leaf block is nonsingular, and exact on vectors orthogonal to its constant."""
+    values[diag[rows]] += np.abs(values[diag[rows]])
+
+
 def components(n_pieces, edges) -> tuple:
     """Connected components of the pieces joined by ``edges`` (pairs of piece ids, couplings between leaves).
 

@@ -17,8 +17,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .embedding import grid_coordinates
-from .morton import quantized_morton_codes
-from .ordering import _check_coords, _check_square, choose_ordering
+from ..morton import quantized_morton_codes
+from ..ordering import _check_coords, _check_square, choose_ordering
 
 LAYOUTS = ("auto", "morton", "graph", "metis", "natural", "rcm")
 CUT_FACTOR = 2.5    # graph leaves cutting more than this / sqrt(leaf) of A's couplings fall back to METIS
@@ -237,7 +237,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     layout : {'auto', 'morton', 'graph', 'metis', 'natural', 'rcm'}
         'auto': Morton leaves (:func:`morton_leaves`) of ``coords`` when given (keeping an order that
         already is Morton), else 'graph'. 'graph': Morton leaves of coordinates found in A's graph
-        (:func:`petsc_htp.embedding.grid_coordinates`), falling back to 'metis' when the graph is not
+        (:func:`petsc_htp.twolevel.embedding.grid_coordinates`), falling back to 'metis' when the graph is not
         2-D-like or the leaves cut more than ``CUT_FACTOR / sqrt(leaf)`` of A's couplings. 'metis': METIS
         parts of A's graph.
     leaf : int

@@ -3,23 +3,23 @@
 Each leaf gets, in this order, q vectors from one block inverse-iteration step of its local Neumann
 matrix S (the leaf block with every coupling out of the leaf folded into the diagonal, slightly
 shifted) from smooth seeds, made orthogonal to the constants of the leaf's pieces
-(:mod:`petsc_htp.nullspace`) and orthonormal; with ``extra`` > 0, that many more seeds through the
+(:mod:`petsc_htp.twolevel.nullspace`) and orthonormal; with ``extra`` > 0, that many more seeds through the
 same step, made orthogonal to all of those and kept where their Ritz value is at most ``tol`` times
 the leaf's mean diagonal; then the normalised constant of each of its pieces. Vectors that come out
 linearly dependent are left zero, as are kept-out extras: a zero coarse vector is an unused column.
 One step from smooth seeds gives approximate low eigenvectors, which take fewer CG iterations here
 than converged ones.
 
-Rows are in the leaves' order (:class:`~petsc_htp.leaflayout.LeafLayout`); the batched per-leaf work
+Rows are in the leaves' order (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`); the batched per-leaf work
 runs on the padded (K, Lmax, q) layout. ``solve`` applies S^-1 to an (n, q) array, so the factor can be
-PETSc's (:mod:`petsc_htp.twolevelpc`) or any other.
+PETSc's (:mod:`petsc_htp.twolevel.composed`) or any other.
 """
 from __future__ import annotations
 
 import numpy as np
 import torch
 
-DEPENDENT = 1e-8       # R_jj below this times the leaf's largest: column j is dependent and left zero
+DEPENDENT = 1e-6       # a direction with a singular value below this times the leaf's largest is dropped
 NEUMANN_SHIFT = 1e-4   # S's shift, times the leaf's mean |diagonal| (its constants are exact coarse vectors)
 
 
@@ -40,6 +40,15 @@ def neumann_diagonal(diag, outside, leaf, sizes) -> np.ndarray:
     return folded + NEUMANN_SHIFT * mean[leaf]
 
 
+def lift(diag):
+    """What to add to the coarse operator's diagonal ``diag``: its largest magnitude where it is zero (an unused,
+    all-zero coarse vector), nothing elsewhere; same type as ``diag`` (numpy or torch)."""
+    top = abs(diag).max()
+    top = float(top.detach() if hasattr(top, "detach") else top)
+    scale = top if top > 0 else 1.0
+    return (diag == 0) * scale
+
+
 def piece_constants(lay) -> torch.Tensor:
     """(K, Lmax, c): every piece's normalised constant in column (its index within the leaf), c the most pieces."""
     K, L = lay.shape
@@ -49,13 +58,28 @@ def piece_constants(lay) -> torch.Tensor:
     return P.view(K, L, -1)
 
 
-def _orthonormal(X) -> torch.Tensor:
-    """Orthonormal columns spanning each leaf's X (K, Lmax, q); dependent columns come out zero."""
+def _orthonormal(X, scale) -> torch.Tensor:
+    """Orthonormal columns spanning each leaf's X (K, Lmax, q), as many as its rank; the rest come out zero.
+
+    Symmetric orthonormalisation through each leaf's Gram matrix, twice (the second pass removes the first's
+    rounding): it keeps the span exactly, and a direction whose singular value is below DEPENDENT times the
+    leaf's ``scale`` (K,) (the size of the vectors before anything was taken out of them) is dropped, whatever
+    its position (a QR would bend the columns after a dependent one).
+    """
     if X.shape[2] == 0:
         return X
-    Q, R = torch.linalg.qr(X)
-    d = R.diagonal(dim1=1, dim2=2).abs()
-    return Q * (d > DEPENDENT * d.amax(1, keepdim=True).clamp_min(torch.finfo(torch.float64).tiny))[:, None, :]
+    floor = (DEPENDENT * scale).square().clamp_min(torch.finfo(torch.float64).tiny)[:, None]
+    for _ in range(2):
+        w, V = torch.linalg.eigh(X.mT @ X)
+        keep = w > floor
+        X = X @ (V * torch.where(keep, w.clamp_min(torch.finfo(torch.float64).tiny).rsqrt(), 0.0)[:, None, :])
+        floor = torch.full_like(floor, 0.25)            # the second pass: kept directions have unit length
+    return X
+
+
+def _size(X) -> torch.Tensor:
+    """Each leaf's largest column norm of X (K, Lmax, q)."""
+    return X.square().sum(1).amax(1).sqrt() if X.shape[2] else torch.zeros(X.shape[0], dtype=X.dtype)
 
 
 def _without(X, C) -> torch.Tensor:
@@ -95,19 +119,13 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
         P = constants
     else:
         pos = torch.as_tensor(lay.pos)
-        c = constants.shape[2]
-        Y = torch.zeros(K * L, c + start_vectors.shape[1], dtype=torch.float64)
-        Y[pos, c:] = torch.as_tensor(solve(start_vectors))
+        Y = torch.zeros(K * L, start_vectors.shape[1], dtype=torch.float64)
+        Y[pos] = torch.as_tensor(solve(start_vectors))
         Y = Y.view(K, L, -1)
-        q = Y.shape[2] - c - extra
-        if lay.pieces.n_pieces == K:            # one piece per leaf: one QR of [constant, modes] makes them orthogonal
-            Y[:, :, :c] = constants
-            blocks = [_orthonormal(Y[:, :, :c + q])[:, :, c:]]
-        else:
-            blocks = [_orthonormal(_without(Y[:, :, c:c + q], constants))]
-        Y = Y[:, :, c:]
+        q = Y.shape[2] - extra
+        blocks = [_orthonormal(_without(Y[:, :, :q], constants), _size(Y[:, :, :q]))]
         if extra:
-            rest = _orthonormal(_without(Y[:, :, q:], blocks[0]))
+            rest = _orthonormal(_without(_without(Y[:, :, q:], constants), blocks[0]), _size(Y[:, :, q:]))
             SX = torch.zeros(K * L, extra, dtype=torch.float64)
             SX[pos] = torch.as_tensor(S @ rest.reshape(K * L, -1)[pos].numpy())
             theta, U = torch.linalg.eigh(rest.mT @ SX.view(K, L, -1))

@@ -22,8 +22,8 @@ import numbers
 import numpy as np
 from scipy import ndimage, optimize
 
-from .morton import morton_code
-from .scenes import assemble_operator
+from ..morton import morton_code
+from ..scenes.generator import assemble_operator
 
 GRAVITY = 9.81
 FRAME_DT = 1.0 / 60.0

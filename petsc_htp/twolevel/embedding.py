@@ -6,7 +6,7 @@ apart nodes (opposite corners, and the other two corners, found where a first gu
 first pair's midpoint set is extreme, farthest from that midpoint set) are the grid's diagonal coordinates; rotated by 45 degrees they
 are its x and y. Eight breadth-first searches give them, in a few milliseconds where a METIS partition
 takes hundreds; Morton leaves on them
-(:func:`petsc_htp.leaves.choose_leaves`) are the grid's square blocks whatever the row order. On a
+(:func:`petsc_htp.twolevel.leaves.choose_leaves`) are the grid's square blocks whatever the row order. On a
 graph that is not 2-D-like (level sizes around a corner growing faster than linearly, as in 3-D) or
 not connected, :func:`grid_coordinates` returns None and the caller partitions otherwise.
 """

@@ -1,4 +1,4 @@
-"""End-to-end training of the coarse-basis network (``python -m petsc_htp.coarsetrain``).
+"""End-to-end training of the coarse-basis network (``python -m petsc_htp.twolevel.coarsetrain``).
 
 The loss is the cosine-Hutchinson loss of the two-level M built from the network's basis,
 with gradients through the exact Galerkin coarse solve; the leaf inverses are fixed per
@@ -23,13 +23,14 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from . import coarsenet
+from . import coarsenet, nullspace
 from .coarsenet import CoarseConfig, CoarseInput, CoarseNet, coarse_input
-from .dataset import load_dataset
+from ..scenes.dataset import load_dataset
 from .leaves import choose_leaves
-from .loss import cosine_loss, n_probes, smoothed_probes
-from .pcg import pcg
-from .twolevel import TwoLevelAnalysis, _coarse_null_space, _galerkin, analyse, factor, leaf_stage
+from ..loss import cosine_loss, n_probes, smoothed_probes
+from ..pcg import pcg
+from .batched import TwoLevelAnalysis, _dropped_columns, analyse, factor, galerkin, leaf_stage, lifted
+from .coarsespace import _without
 
 PROBE_STEPS = 30            # probe smoothing steps (see context_loss)
 
@@ -42,54 +43,59 @@ class Context:
     data: torch.Tensor          # A.data, float64
     A: torch.Tensor             # padded permuted A, sparse CSR float64
     blocks: torch.Tensor        # (K, Lmax, Lmax) leaf blocks
-    leaf_inv: torch.Tensor      # (K, Lmax, Lmax) their inverses
-    null: torch.Tensor          # (C,) bool, singular components
+    leaf_inv: torch.Tensor      # (K, Lmax, Lmax) inverses of the (grounded) leaf blocks
+    drop: np.ndarray            # pieces whose constant the coarse space leaves out
+    null_rows: torch.Tensor     # padded rows of the null components and each one's component
+    null_label: torch.Tensor
     inp: CoarseInput
 
 
 def make_context(cfg: CoarseConfig, A, leaves, coords=None, density=None, device="cpu") -> Context:
     """Precompute everything but the coarse basis for one operator on one leaf layout."""
     an = analyse(A, leaves, device)
-    data, A_t, blocks, _, null, leaf_inv, _ = leaf_stage(an, A)
-    return Context(an, data, A_t, blocks, leaf_inv, null, coarse_input(cfg, an, A, coords, density))
+    data, A_t, blocks, _, drop, leaf_inv, _, _ = leaf_stage(an, A)
+    lay = an.lay
+    rowsum = np.bincount(lay.entry_row, A.data, minlength=lay.n)
+    null = nullspace.null_by_rowsums(rowsum, A.data[lay.d_src[lay.d_diag]], an.comp_of_row, an.n_comp)
+    rows = np.flatnonzero(null[an.comp_of_row])                       # A's rows in null components
+    return Context(an, data, A_t, blocks, leaf_inv, drop, torch.as_tensor(lay.pos[lay.iperm[rows]]),
+                   torch.as_tensor(an.comp_of_row[rows]), coarse_input(cfg, an, A, coords, density))
 
 
-def orthonormal(X: torch.Tensor) -> torch.Tensor:
-    """Per-leaf orthonormal basis of the span of X (K, Lmax, r) by batched QR, float64."""
-    return torch.linalg.qr(X.to(torch.float64))[0]
+def coarse_vectors(ctx: Context, X: torch.Tensor) -> torch.Tensor:
+    """The coarse space of the network's vectors X (K, Lmax, q), differentiably, as the two-level method
+    builds it (:func:`petsc_htp.twolevel.coarsespace.basis`): X made orthogonal to the pieces' constants and
+    orthonormal (by QR, whose gradient is stable where the Gram eigendecomposition's is not), then the
+    constants, the dropped pieces' zeroed."""
+    constants = ctx.analysis.constants
+    P = torch.cat([torch.linalg.qr(_without(X.to(torch.float64), constants))[0], constants], dim=2)
+    return _dropped_columns(ctx.analysis, P, ctx.drop)
 
 
 def null_projector(ctx: Context):
-    """X -> X minus its mean over each singular component (identity when A is regular)."""
-    comp = ctx.analysis.comp
-    rows = ((comp >= 0) & ctx.null[comp.clamp_min(0)]).nonzero().flatten()
+    """X -> X minus its mean over each null component (identity when A is regular)."""
+    rows, label = ctx.null_rows, ctx.null_label
     if rows.numel() == 0:
         return lambda X: X
-    label = comp[rows]
-    size = ctx.analysis.comp_size[:, None]
+    size = torch.bincount(label).to(torch.float64)[:, None]
 
     def project(X):
         mean = torch.zeros(size.shape[0], X.shape[1], dtype=X.dtype, device=X.device)
-        mean = mean.index_add(0, label, X[rows]) / size
+        mean = mean.index_add(0, label, X[rows]) / size.clamp_min(1)
         return X.index_add(0, rows, -mean[label])
     return project
 
 
 def two_level_apply(ctx: Context, P: torch.Tensor):
-    """Differentiable X -> M X for padded blocks X (K Lmax, k), P orthonormal (K, Lmax, r).
+    """Differentiable X -> M X for padded blocks X (K Lmax, k), P the coarse space (K, Lmax, r).
 
-    A_c = P^T A P with A_c's null space (from A's) lifted by its mean diagonal, exactly as
-    :func:`twolevel.factor` does; the lift is held fixed, so gradients are exact on
-    consistent vectors.
+    A_c = P^T A P with its unused columns lifted as :func:`twolevel.batched.factor` does; the lift
+    is held fixed, so gradients are exact.
     """
     an = ctx.analysis
     K, L = an.shape
     r = P.shape[2]
-    Ac = _galerkin(an, ctx.blocks, ctx.data, P)
-    with torch.no_grad():
-        Y = _coarse_null_space(an, P.detach(), ctx.null)
-        s = Ac.diagonal().mean()
-    chol = torch.linalg.cholesky(Ac + s * (Y @ Y.mT))
+    chol = torch.linalg.cholesky(lifted(galerkin(an, ctx.blocks, ctx.data, P)))
 
     def coarse(X):
         y = torch.cholesky_solve((P.mT @ X.view(K, L, -1)).reshape(K * r, -1), chol)
@@ -114,7 +120,7 @@ def context_loss(net: CoarseNet, ctx: Context, generator=None, probe_steps=PROBE
                         steps=probe_steps, generator=generator)
     project = null_projector(ctx)
     Z = project(Z.double())
-    apply = two_level_apply(ctx, orthonormal(net(ctx.inp)))
+    apply = two_level_apply(ctx, coarse_vectors(ctx, coarsenet.own_vectors(net, net(ctx.inp))))
     return cosine_loss(Z, (ctx.A @ Z).detach(), lambda X: project(apply(X)))
 
 
@@ -162,7 +168,7 @@ def evaluate(net: CoarseNet, val: list, probe_steps=PROBE_STEPS) -> dict:
     for ctx, A, b in val:
         with torch.no_grad():
             losses.append(float(context_loss(net, ctx, torch.Generator().manual_seed(1234), probe_steps)))
-            basis = net(ctx.inp).double()
+            basis = coarsenet.own_vectors(net, net(ctx.inp)).double()
         pre = factor(ctx.analysis, A, coarse="given", basis=basis)
         its.append(pcg(A, b, pre.apply, 1e-8).iterations)
     net.train()
@@ -247,8 +253,8 @@ def train(cfg: CoarseConfig, s: TrainSettings, command: str = "") -> Path:
 
 
 def main(argv=None) -> int:
-    """Command line: ``python -m petsc_htp.coarsetrain --rank 4 --max-minutes 30 --out runs/coarse``."""
-    p = argparse.ArgumentParser(prog="python -m petsc_htp.coarsetrain", description=__doc__.split("\n")[0])
+    """Command line: ``python -m petsc_htp.twolevel.coarsetrain --rank 4 --max-minutes 30 --out runs/coarse``."""
+    p = argparse.ArgumentParser(prog="python -m petsc_htp.twolevel.coarsetrain", description=__doc__.split("\n")[0])
     for f in fields(CoarseConfig):
         flag = "--" + f.name.replace("_", "-")
         if f.type in ("bool", bool):
@@ -266,7 +272,7 @@ def main(argv=None) -> int:
     s = TrainSettings(**{f.name: a[f.name] for f in fields(TrainSettings)})
     s.scales = tuple(s.scales)
     args = sys.argv[1:] if argv is None else list(argv)
-    best = train(cfg, s, " ".join(["python -m petsc_htp.coarsetrain", *args]))
+    best = train(cfg, s, " ".join(["python -m petsc_htp.twolevel.coarsetrain", *args]))
     print(f"best checkpoint: {best}")
     return 0
 

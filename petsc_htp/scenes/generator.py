@@ -3,8 +3,8 @@
 Implements the scene generator of the paper supplement ("Multiphase Poisson
 Benchmark Generation"): cell-centred grids in Morton order, light fluid with
 heavy barriers, a harmonic-mean 5-point Laplacian with zero-flux boundaries.
-Cached datasets are in :mod:`petsc_htp.dataset`, pictures in
-:mod:`petsc_htp.sceneplot`, PETSc Mat/Vec copies in :mod:`petsc_htp.petscmat`.
+Cached datasets are in :mod:`petsc_htp.scenes.dataset`, pictures in
+:mod:`petsc_htp.scenes.plot`, PETSc Mat/Vec copies in :mod:`petsc_htp.petscmat`.
 """
 import math
 import numbers
@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from .morton import morton_code
+from ..morton import morton_code
 
 GENERATOR_VERSION = "multiphase-poisson-1"
 TOPOLOGIES = ("top", "bottom", "middle_hole", "closed")

@@ -1,7 +1,7 @@
 """The HTP network: encoder, diagonal and off-diagonal attention stacks, highways, heads.
 
-Maps a :class:`~petsc_htp.features.ModelInput` to one packed factor tensor of
-width P that :mod:`petsc_htp.apply` consumes.
+Maps a :class:`~petsc_htp.paper.features.ModelInput` to one packed factor tensor of
+width P that :mod:`petsc_htp.paper.apply` consumes.
 """
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_open
+from ..atomic import atomic_open
 
 FPS_LINES = ((60, "60 fps"), (24, "24 fps"))
 

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .atomic import atomic_open
-from .scenes import GENERATOR_VERSION, Frame, _check_distribution, _check_positive_int, make_frame
+from ..atomic import atomic_open
+from .generator import GENERATOR_VERSION, Frame, _check_distribution, _check_positive_int, make_frame
 
 TEST_SEED_OFFSET = 1_000_000
 SPLIT_SEED_OFFSETS = {"train": 0, "test": TEST_SEED_OFFSET}

@@ -4,7 +4,7 @@ Given a rank's rows of A (scipy CSR, global columns) and its leaves, :func:`layo
 that turn a later frame's values (``A.data``, same pattern) into the leaf blocks D in the leaves' row
 order (each leaf contiguous, so D factors with the natural ordering), the couplings between leaves O
 (A - D, in A's own numbering, other ranks' columns included), and the pieces of every leaf
-(:mod:`petsc_htp.nullspace`). Explicit zeros are not couplings: they are left out of D and O and do
+(:mod:`petsc_htp.twolevel.nullspace`). Explicit zeros are not couplings: they are left out of D and O and do
 not join pieces. Pure numpy: no PETSc, no torch.
 """
 from __future__ import annotations

@@ -17,15 +17,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import checkpoint
-from .atomic import write_text
+from .. import checkpoint
+from . import weights
+from ..atomic import write_text
 from .apply import Factors, HTPOperator, TreeIndex, htp_apply
 from .features import build_input
-from .loss import cosine_loss, n_probes, sai_loss, smoothed_probes
+from ..loss import cosine_loss, n_probes, sai_loss, smoothed_probes
 from .model import HTPConfig, HTPNet
-from .ordering import rcm_permutation
-from .pcg import pcg
-from .dataset import load_dataset
+from ..ordering import rcm_permutation
+from ..pcg import pcg
+from ..scenes.dataset import load_dataset
 
 
 @dataclass
@@ -163,7 +164,7 @@ def train(cfg: HTPConfig, s: TrainSettings) -> Path:
     step, elapsed = 0, 0.0
     parent = None
     if s.init:
-        p = checkpoint.warm_start(net, s.init)
+        p = weights.warm_start(net, s.init)
         parent = {"path": str(s.init), "steps": p.get("steps"), "wall_s": p.get("wall_s"),
                   "scales": p.get("scales"), "device": p.get("device"), "init": p.get("init")}
     last = untrained = evaluate(net, held, held_ctx)

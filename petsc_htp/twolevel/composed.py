@@ -4,7 +4,7 @@
 
 B = D^-1 solves the leaves exactly: D, A's leaf blocks in the leaves' row order, is one sparse matrix per
 rank with one Cholesky factor (natural ordering: the leaves are contiguous). W holds the coarse vectors
-of every leaf (:mod:`petsc_htp.coarsespace`), E = W^T A W is solved by a sparse direct factor. Because
+of every leaf (:mod:`petsc_htp.twolevel.coarsespace`), E = W^T A W is solved by a sparse direct factor. Because
 D B = I, W^T A B x = W^T x + C^T B x with C = (A - D) W, the couplings between leaves times W (a few
 rows per leaf); so the deflated form is y = v - W E^-1 C^T v with v = B x: one leaf solve, one coarse
 solve and two thin products per application. Started so that W^T r0 = 0 (:meth:`TwoLevelPC.presolve`),
@@ -16,7 +16,7 @@ nonzero pattern (W holds each leaf's largest count of vectors), symbolic factori
 :meth:`TwoLevelPC.numeric` then only moves values: new values into D, the Neumann matrix and O,
 numeric factorisations, the coarse space, and the products A W-free ``C = O W`` and ``E = W^T A W`` with
 PETSc's reuse. One global coarse space serves every rank; a Neumann operator's null space is handled
-per connected component (:mod:`petsc_htp.nullspace`).
+per connected component (:mod:`petsc_htp.twolevel.nullspace`).
 """
 from __future__ import annotations
 
@@ -28,10 +28,9 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
-from scipy.sparse.csgraph import connected_components
 
 from . import coarsespace, nullspace
-from .checks import rayleigh_reason
+from ..checks import rayleigh_reason
 from .leaflayout import layout
 from .leafsolvers import LEAF_DEFAULTS, ExactLeaves, OverlappingLeaves, seqaij
 from .leaves import choose_leaves
@@ -54,17 +53,17 @@ class Config:
     leaf : int
         Rows per leaf.
     ordering : str
-        Leaf layout: auto, morton, metis, natural or rcm (:func:`petsc_htp.leaves.choose_leaves`).
+        Leaf layout: auto, morton, metis, natural or rcm (:func:`petsc_htp.twolevel.leaves.choose_leaves`).
     coarse : str
         const, eig or learned.
     rank : int
         Vectors per leaf r: the piece constants and r - 1 more (eig; learned takes the network's r).
     tol : float
-        With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.coarsespace`).
+        With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.twolevel.coarsespace`).
     form : str
         auto (deflated, or balanced under a KSP that needs a symmetric M), deflated or balanced.
     overlap : int
-        0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.leafsolvers`).
+        0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).
     """
 
     leaf: int = 128
@@ -162,19 +161,23 @@ class TwoLevelPC:
     """
 
     def __init__(self, mat, rows, coords, cfg: Config, prefix="htp_", net=None):
+        try:
+            self._analyse(mat, rows, coords, cfg, prefix, net)
+        except Exception:
+            self.destroy()                       # what was built so far
+            raise
+
+    def _analyse(self, mat, rows, coords, cfg, prefix, net):
         t0 = time.perf_counter()
         self.mat, self.cfg, self.net, self.coords = mat, cfg, net, coords
         self.comm, self.coll = mat.getComm(), _Collective(mat.getComm())
         start, end = mat.getOwnershipRange()
-        n = end - start
-        if n == 0:
-            raise ValueError("a rank owns no rows of the matrix; the two-level preconditioner needs rows on every rank")
         block = rows if self.coll.size == 1 else rows[:, start:end].tocsr()
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf)
-        lay = self.lay = layout(rows, start, self.leaves)
+        self.lay = layout(rows, start, self.leaves)
         self._torch_analysis = None
         if cfg.coarse == "learned":                                   # the network's layout: pattern only
-            from . import twolevel
+            from . import batched as twolevel
 
             self._torch_analysis = twolevel.analyse(block, self.leaves)
         self._components(rows)
@@ -195,8 +198,7 @@ class TwoLevelPC:
         self.isolated = np.zeros(self.n_pieces, dtype=bool)
         self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
         if coll.size == 1:                                            # A's own components, read off its rows
-            graph = rows if np.all(rows.data != 0) else rows.multiply(rows != 0).tocsr()
-            self.n_comp, labels = connected_components(graph, directed=False)
+            self.n_comp, labels = nullspace.graph_components(rows)
             self.comp_of_row = labels
             self.comp_of_piece = np.zeros(self.n_pieces, dtype=np.int64)
             self.comp_of_piece[row_piece] = labels
@@ -292,8 +294,7 @@ class TwoLevelPC:
         null, drop, ground = self._null(data)
         np.take(data, lay.d_src, out=self.d_values)
         if ground.any():
-            rows_g = self._first_rows(ground)
-            self.d_values[lay.d_diag[rows_g]] += np.abs(self.d_values[lay.d_diag[rows_g]]).max(initial=1.0)
+            nullspace.ground(self.d_values, lay.d_diag, nullspace.first_rows(lay.pieces.label, ground))
         self.leafsolver.numeric(data)
         T["leaf"] = _ms(t0)
         t0 = time.perf_counter()
@@ -342,13 +343,6 @@ class TwoLevelPC:
         drop, ground = nullspace.dropped(null, self.comp_of_piece, self.isolated)
         return null, drop, ground[self.piece_offset:self.piece_offset + self.lay.pieces.n_pieces]
 
-    def _first_rows(self, pieces_mask) -> np.ndarray:
-        """The first row (leaves' order) of each marked local piece."""
-        label = self.lay.pieces.label
-        first = np.full(pieces_mask.size, -1)
-        first[label[::-1]] = np.arange(label.size)[::-1]
-        return first[pieces_mask]
-
     def _space(self, rows, density) -> tuple:
         """The coarse basis (padded) and the vectors kept per leaf."""
         lay = self.lay
@@ -366,11 +360,10 @@ class TwoLevelPC:
 
     def _learned_seeds(self, rows, density) -> np.ndarray:
         """The coarse network's vectors (constant column left out) as seeds, plus the cosine extras."""
-        from .coarsenet import learned_basis
+        from .coarsenet import learned_vectors
 
         block = rows if self.coll.size == 1 else _folded_block(rows, self.lay.start, self.lay.n)
-        P = learned_basis(self.net, self._torch_analysis, block, self.coords, density).cpu()
-        P = P[:, :, 1:] if self.net.cfg.const_column else P
+        P = learned_vectors(self.net, self._torch_analysis, block, self.coords, density).cpu()
         K, L = self.lay.shape
         net = P.reshape(K * L, -1)[torch.as_tensor(self.lay.pos)].numpy()
         return np.asfortranarray(np.hstack([net, self.seeds[:, self.q:]]) if self.extra else net)
@@ -410,9 +403,8 @@ class TwoLevelPC:
             self.F = self.W.transposeMatMult(self.C, result=self.F)
         lift = self.E.createVecLeft() if first else self._lift
         diag = self.E.getDiagonal()
-        live = np.abs(diag.getArray()) > 0
-        scale = self.coll.max_array(np.array([np.abs(diag.getArray()).max(initial=0.0)]))[0] or 1.0
-        lift.getArray()[:] = np.where(live, 0.0, scale)
+        top = self.coll.max_array(np.array([np.abs(diag.getArray()).max(initial=0.0)]))[0]
+        lift.getArray()[:] = coarsespace.lift(np.append(diag.getArray(), top))[:-1]      # the global top sets the scale
         self.E.setDiagonal(lift, addv=PETSc.InsertMode.ADD_VALUES)
         diag.destroy()
         self._lift = lift
@@ -488,6 +480,9 @@ class TwoLevelPC:
         else:
             b.copy(self.t)
             x.set(0.0)
+        nsp = ksp.getOperators()[0].getTransposeNullSpace()
+        if nsp:                       # KSPSolve projects b only after this call: start on the projected residual
+            nsp.remove(self.t)
         self.W.multTranspose(self.t, self.g)
         self.coarse.apply(self.g, self.c)
         self.W.multAdd(self.c, x, x)
@@ -601,14 +596,17 @@ class TwoLevelPC:
                 f"memory on this rank: {self.nbytes / max(n // self.coll.size, 1):.0f} bytes per unknown"]
 
     def destroy(self):
-        """Free every PETSc object."""
-        self._free_dense()
-        self.leafsolver.destroy()
-        for obj in (self.S, self.S_factor, self.O, self.W, self.C, self.E, self.Eb, self.F, self.AW, self.coarse,
-                    self.v, self.t, getattr(self, "_lift", None), getattr(self, "g", None),
-                    getattr(self, "c", None), getattr(self, "c2", None)):
+        """Free every PETSc object (also of a construction that failed part of the way)."""
+        if getattr(self, "_dense", None) is not None:
+            self._free_dense()
+        if getattr(self, "leafsolver", None) is not None:
+            self.leafsolver.destroy()
+        for name in ("S", "S_factor", "O", "W", "C", "E", "Eb", "F", "AW", "coarse", "v", "t", "_lift", "g", "c", "c2"):
+            obj = getattr(self, name, None)
             if obj is not None:
                 obj.destroy()
+                setattr(self, name, None)
+        self.leafsolver = None
 
 
 def _folded_block(rows, start, n) -> sp.csr_matrix:

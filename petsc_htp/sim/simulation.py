@@ -1,6 +1,6 @@
 """A pressure solver that lives across the frames of a simulation: one Mat, one KSP, reuse the PETSc way.
 
-:func:`simulate` runs :class:`petsc_htp.flow.Flow` with the method whose
+:func:`simulate` runs :class:`petsc_htp.sim.flow.Flow` with the method whose
 options sit under a prefix (see :mod:`petsc_htp.methods`): the matrix keeps
 its nonzero pattern and gets new values every frame, the previous pressure is
 the initial guess, and :class:`ReusePolicy` decides when the preconditioner is
@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 from petsc4py import PETSc
 
-from .atomic import atomic_open
+from ..atomic import atomic_open
 from .flow import Flow
-from .flowplot import plot_runs, write_gif
-from .methods import reason_name, set_blocks
-from .petscmat import attach, region_nullspace
+from .plot import plot_runs, write_gif
+from ..methods import bjacobi_blocks, reason_name
+from ..petscmat import attach, region_nullspace
 
 
 def create_matrix(A, regions):
@@ -61,11 +61,11 @@ class PressureSolver:
     def __init__(self, A, regions, prefix="", warm=True):
         self.mat = create_matrix(A, regions)
         self.indptr, self.indices = A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType)
-        set_blocks(prefix, A.shape[0])
         self.ksp = PETSc.KSP().create(comm=self.mat.getComm())
         self.ksp.setOptionsPrefix(prefix)
         self.ksp.setOperators(self.mat, self.mat)
-        self.ksp.setFromOptions()
+        with bjacobi_blocks(prefix, A.shape[0]):
+            self.ksp.setFromOptions()
         self.warm = warm
         self.ksp.setInitialGuessNonzero(warm)          # the previous frame's pressure
         self.max_it = self.ksp.getTolerances()[3]
@@ -161,13 +161,18 @@ class ReusePolicy:
         return self.since is None or self.every == 0 or self.since >= self.every
 
     def cap(self):
-        """Iterations a reused PC may take in the coming frame."""
-        return max(1, math.ceil(self.growth * self.ref_its))
+        """Iterations a reused PC may take in the coming frame (None: no rebuilt frame has iterated yet)."""
+        return math.ceil(self.growth * self.ref_its) if self.ref_its else None
 
     def record(self, rebuilt, fresh_its):
-        """Note a solved frame: whether its PC was rebuilt, and the iterations with the rebuilt PC."""
+        """Note a solved frame: whether its PC was rebuilt, and the iterations with the rebuilt PC.
+
+        A rebuilt frame that converged in 0 iterations (its start was already the solution)
+        says nothing about the PC and leaves the reference as it was.
+        """
         self.since = 1 if rebuilt else self.since + 1
-        self.ref_its = fresh_its if rebuilt else self.ref_its
+        if rebuilt and fresh_its > 0:
+            self.ref_its = fresh_its
 
 
 # ------------------------------------------------------------------- runs
@@ -178,43 +183,48 @@ def simulate(cfg, label, prefix="", verbose=True):
     ``cfg`` holds nx, ny, frames, density_ratio, seed, reuse_every, reuse_growth, out, animate.
     Writes ``out/LABEL.jsonl`` (atomically) and ``out/LABEL.png``, with ``animate`` also a GIF.
     """
+    if cfg["frames"] < 1:
+        raise ValueError(f"frames must be at least 1, got {cfg['frames']}")
     sim = Flow(cfg["nx"], cfg["ny"], density_ratio=cfg["density_ratio"], seed=cfg["seed"])
     policy = ReusePolicy(cfg["reuse_every"], cfg["reuse_growth"])
     solver, records, images = None, [], []
-    for frame in range(cfg["frames"]):
-        t0 = time.perf_counter()
-        sim.advance()
-        A, rhs, coords, density = sim.system()
-        div_before = sim.max_divergence()
-        t1 = time.perf_counter()
-        if solver is None:
-            solver = PressureSolver(A, sim.regions, prefix)
-        res = solver.solve(A, rhs, coords, 1.0 / density, policy.rebuild(), policy.cap())
-        t2 = time.perf_counter()
-        code = res.pop("code")
-        converged = code > 0
-        div_after = sim.project(solver.pressure()) if converged else None
-        heavy, light = sim.phase_mass()
-        rec = {"frame": frame, "method": label, "n": sim.n, **res,
-               "reason": reason_name(code),
-               "div_before": div_before, "div_after": div_after,
-               "physics_ms": 1e3 * (t1 - t0 + time.perf_counter() - t2), "substeps": sim.substeps,
-               "mass_heavy": heavy, "mass_light": light}
-        records.append(rec)
-        if verbose:
-            print(f"{label} frame {frame:3d}  its {rec['its']:5d}  setup {rec['setup_ms']:7.2f} ms  "
-                  f"solve {rec['solve_ms']:7.2f} ms  {rec['reason']:<16} relres {rec['relres']:.2e}  "
-                  f"div {math.nan if div_after is None else div_after:.2e}  "
-                  f"rebuilt {'after the cap' if rec['restarted'] else 'yes' if rec['rebuilt'] else 'no'}",
-                  flush=True)
-        if not converged:
-            print(f"error: {label}: frame {frame}: KSP did not converge ({rec['reason']})",
-                  file=sys.stderr, flush=True)
-            break
-        policy.record(rec["rebuilt"], rec["its"] - rec["reused_its"])
-        if cfg["animate"]:
-            images.append((sim.density_image(), sim.pressure_image(solver.pressure())))
-    solver.destroy()
+    try:
+        for frame in range(cfg["frames"]):
+            t0 = time.perf_counter()
+            sim.advance()
+            A, rhs, coords, density = sim.system()
+            div_before = sim.max_divergence()
+            t1 = time.perf_counter()
+            if solver is None:
+                solver = PressureSolver(A, sim.regions, prefix)
+            res = solver.solve(A, rhs, coords, 1.0 / density, policy.rebuild(), policy.cap())
+            t2 = time.perf_counter()
+            code = res.pop("code")
+            converged = code > 0
+            div_after = sim.project(solver.pressure()) if converged else None
+            heavy, light = sim.phase_mass()
+            rec = {"frame": frame, "method": label, "n": sim.n, **res,
+                   "reason": reason_name(code),
+                   "div_before": div_before, "div_after": div_after,
+                   "physics_ms": 1e3 * (t1 - t0 + time.perf_counter() - t2), "substeps": sim.substeps,
+                   "mass_heavy": heavy, "mass_light": light}
+            records.append(rec)
+            if verbose:
+                print(f"{label} frame {frame:3d}  its {rec['its']:5d}  setup {rec['setup_ms']:7.2f} ms  "
+                      f"solve {rec['solve_ms']:7.2f} ms  {rec['reason']:<16} relres {rec['relres']:.2e}  "
+                      f"div {math.nan if div_after is None else div_after:.2e}  "
+                      f"rebuilt {'after the cap' if rec['restarted'] else 'yes' if rec['rebuilt'] else 'no'}",
+                      flush=True)
+            if not converged:
+                print(f"error: {label}: frame {frame}: KSP did not converge ({rec['reason']})",
+                      file=sys.stderr, flush=True)
+                break
+            policy.record(rec["rebuilt"], rec["its"] - rec["reused_its"])
+            if cfg["animate"]:
+                images.append((sim.density_image(), sim.pressure_image(solver.pressure())))
+    finally:
+        if solver is not None:
+            solver.destroy()
     out = Path(cfg["out"])
     with atomic_open(out / f"{label}.jsonl") as handle:
         handle.writelines(json.dumps(rec) + "\n" for rec in records)

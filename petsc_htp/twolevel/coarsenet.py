@@ -4,7 +4,7 @@ For every leaf of a :class:`~petsc_htp.twolevel.TwoLevelAnalysis` the network re
 operator (and, when given, coordinates and density) and returns r vectors: the leaf
 constant plus r - 1 learned vectors, smoothed by a few damped-Jacobi steps with the leaf's
 Neumann matrix. Features are ratios of A's entries, so the basis is invariant to A -> c A.
-Use it with ``twolevel.factor(analysis, A, coarse="seeded", basis=learned_basis(...))`` (as
+Use it with ``twolevel.factor(analysis, A, coarse="seeded", basis=learned_vectors(...))`` (as
 HTPPC does: the vectors refined by one inverse-iteration step) or ``coarse="given"`` (raw, as trained).
 """
 from __future__ import annotations
@@ -17,13 +17,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from . import checkpoint
-from .checkpoint import CheckpointError
-from .twolevel import _values
+from .. import checkpoint
+from ..checkpoint import CheckpointError
+from .batched import _values
 
 FORMAT = "petsc_htp-coarse-checkpoint"
 VERSION = 1
-DEFAULT = Path(__file__).parent / "checkpoints" / "coarse_default.pt"
+DEFAULT = Path(__file__).parent.parent / "checkpoints" / "coarse_default.pt"
 NODE_FEATURES = 10          # plus CoarseConfig.noise_channels
 NOISE_SEED = 0              # fixed: the smoothed-noise positions are deterministic
 FLOAT = torch.float32
@@ -266,6 +266,16 @@ def learned_basis(net: CoarseNet, analysis, A, coords=None, density=None) -> tor
     with torch.inference_mode():
         net = net.to(analysis.device)
         return net(coarse_input(net.cfg, analysis, A, coords, density)).to(torch.float64)
+
+
+def own_vectors(net: CoarseNet, basis: torch.Tensor) -> torch.Tensor:
+    """The network's vectors besides its leaf constant (the coarse space adds every piece's constant itself)."""
+    return basis[:, :, 1:] if net.cfg.const_column else basis
+
+
+def learned_vectors(net: CoarseNet, analysis, A, coords=None, density=None) -> torch.Tensor:
+    """:func:`learned_basis` without the leaf constant: the seeds of the two-level 'seeded' coarse space."""
+    return own_vectors(net, learned_basis(net, analysis, A, coords, density))
 
 
 def save(path, net: CoarseNet, provenance: dict, extra: dict | None = None) -> Path:

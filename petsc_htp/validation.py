@@ -1,0 +1,98 @@
+"""What HTPPC checks on a matrix before it builds anything, decided by every rank together.
+
+Each rank counts the problems of its own rows; one reduction gives every rank the same counts and the
+first offending global row, so every rank raises the same error naming the problem (or none does), and
+no rank is left waiting in a collective that another one skipped. Checked: a non-square or empty
+matrix, a rank without rows, NaN or Inf entries, empty rows, missing or zero diagonal entries, negative
+diagonal entries (HTPPC needs an SPD matrix), and, once per nonzero pattern unless the matrix says it is
+symmetric, symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y|.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+ASYMMETRY = 1e-8        # |x^T A y - y^T A x| / (|x| |y| max_i sum_j |a_ij|) above this: not symmetric
+
+PROBLEMS = ("a rank without rows", "NaN or Inf entries", "empty rows", "missing or zero diagonal entries",
+            "negative diagonal entries")
+
+
+class MatrixError(ValueError):
+    """The matrix handed to HTPPC cannot be preconditioned; the message names the problem (every rank's)."""
+
+
+def _reduce(comm, counts, first):
+    """Sum of ``counts`` and minimum of ``first`` over the ranks of ``comm`` (PETSc communicator)."""
+    if comm.getSize() == 1:
+        return counts, first
+    from mpi4py import MPI
+
+    mpi = comm.tompi4py()
+    total, lowest = np.empty_like(counts), np.empty_like(first)
+    mpi.Allreduce(counts, total, op=MPI.SUM)
+    mpi.Allreduce(first, lowest, op=MPI.MIN)
+    return total, lowest
+
+
+def check_size(mat) -> None:
+    """Raise :class:`MatrixError` (every rank alike: the sizes are global) for a non-square or 0 x 0 matrix."""
+    n_rows, n_cols = mat.getSize()
+    if n_rows != n_cols:
+        raise MatrixError(f"HTPPC needs a square matrix, got {n_rows} x {n_cols} (non-square)")
+    if n_rows == 0:
+        raise MatrixError("HTPPC got an empty matrix (0 x 0)")
+
+
+def check_matrix(mat, rows) -> None:
+    """Raise :class:`MatrixError` on every rank when any rank's ``rows`` (its rows of ``mat``, scipy CSR with
+    global columns) show a problem of :data:`PROBLEMS` (collective; after :func:`check_size`)."""
+    n_rows, n_cols = mat.getSize()
+    start = mat.getOwnershipRange()[0]
+    n = rows.shape[0]
+    diag = mat.getDiagonal()
+    d = diag.getArray(readonly=True).copy()
+    diag.destroy()
+    finite = np.isfinite(rows.data)
+    none = np.zeros(0, dtype=np.int64)
+    bad = [none if n else np.array([0]),                                     # local row numbers
+           none if finite.all() else np.unique(np.repeat(np.arange(n), np.diff(rows.indptr))[~finite]),
+           np.flatnonzero(np.diff(rows.indptr) == 0),
+           np.flatnonzero(d == 0),
+           np.flatnonzero(d < 0)]
+    counts = np.array([b.size for b in bad] + [rows.nnz], dtype=np.int64)
+    first = np.array([b[0] + start if b.size else np.iinfo(np.int64).max for b in bad] + [0], dtype=np.int64)
+    counts, first = _reduce(mat.getComm(), counts, first)
+    if counts[-1] == 0:
+        raise MatrixError(f"HTPPC got an empty matrix ({n_rows} x {n_cols} with no nonzeros)")
+    for k, what in enumerate(PROBLEMS):
+        if counts[k]:
+            where = "" if k == 0 else f" in {counts[k]} row(s), the first global row {first[k]}"
+            raise MatrixError(f"the matrix has {what}{where}; HTPPC needs a finite SPD matrix"
+                              + (" with every rank owning rows" if k == 0 else ""))
+
+
+def check_symmetry(mat) -> None:
+    """Raise :class:`MatrixError` (every rank) when a random probe shows ``mat`` is not symmetric; nothing when
+    the matrix is known to be symmetric (MAT_SYMMETRIC). Collective."""
+    from petsc4py import PETSc
+
+    known, symmetric = mat.isSymmetricKnown()
+    if known and symmetric:
+        return
+    x, y = mat.createVecs()
+    ax, ay = mat.createVecs()
+    rng = PETSc.Random().create(mat.getComm())
+    try:
+        x.setRandom(rng)
+        y.setRandom(rng)
+        mat.mult(x, ax)
+        mat.mult(y, ay)
+        gap = abs(x.dot(ay) - y.dot(ax))
+        scale = x.norm() * y.norm() * mat.norm(PETSc.NormType.INFINITY)
+    finally:
+        for obj in (x, y, ax, ay, rng):
+            obj.destroy()
+    if gap > ASYMMETRY * scale:
+        raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
+                          "|x| |y| |A|); HTPPC needs an SPD matrix (if A is symmetric to rounding, say so with "
+                          "MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE))")

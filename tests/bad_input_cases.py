@@ -1,0 +1,263 @@
+"""Bad input for HTPPC, run under ``mpiexec -n 1`` or ``-n 2`` by tests/test_bad_input.py.
+
+Every case builds its matrix on every rank, solves with CG + HTPPC as it comes (plus the case's options)
+and prints one line per rank: ``CASE <name> rank <r>: <outcome>`` with the outcome ``error: <message>``,
+``converged <its> <relres> <analyses> <numeric steps>`` or ``diverged <PETSc reason>``.
+"""
+import sys
+from pathlib import Path
+
+import petsc4py
+
+petsc4py.init(sys.argv[:1])
+import numpy as np  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from petsc_htp.methods import reason_name  # noqa: E402
+from petsc_htp.petscmat import region_nullspace  # noqa: E402
+from petsc_htp.scenes.generator import make_frame  # noqa: E402
+
+COMM = PETSc.COMM_WORLD
+N = 1024
+BASE = make_frame(N, seed=1_000_000)
+
+
+def dist(A, null=None, rows_on=None, symmetric=True):
+    """A distributed AIJ copy of the global scipy ``A`` (``rows_on``: rows per rank; default PETSc's split)."""
+    A = sp.csr_matrix(A)
+    size, rank = COMM.getSize(), COMM.getRank()
+    counts = rows_on or [A.shape[0] // size + (r < A.shape[0] % size) for r in range(size)]
+    start = sum(counts[:rank])
+    local = A[start:start + counts[rank]]
+    mat = PETSc.Mat().createAIJ(size=((counts[rank], A.shape[0]), (counts[rank], A.shape[1])), comm=COMM,
+                                nnz=(np.diff(local.indptr).astype(PETSc.IntType), np.diff(local.indptr).astype(PETSc.IntType)))
+    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for i in range(local.shape[0]):
+        lo, hi = local.indptr[i], local.indptr[i + 1]
+        mat.setValues(start + i, local.indices[lo:hi].astype(PETSc.IntType), local.data[lo:hi])
+    mat.assemble()
+    if null is not None:
+        mat.setNullSpace(region_nullspace(mat, null))
+    if symmetric:
+        mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    return mat
+
+
+def rhs(mat, b):
+    vec = mat.createVecLeft()
+    lo, hi = vec.getOwnershipRange()
+    vec.setArray(np.asarray(b, dtype=np.float64)[lo:hi])
+    return vec
+
+
+def solve(mat, b, opts=(), ksp=None):
+    """(reason, its, relres, ctx) of CG + HTPPC on ``mat`` (a new KSP unless ``ksp``)."""
+    db = PETSc.Options()
+    base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 500,
+            "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"}
+    x, bv = mat.createVecRight(), rhs(mat, b)
+    x.set(0.0)
+    try:
+        for k, v in {**base, **dict(opts)}.items():
+            db.setValue(k, v)
+        fresh = ksp is None
+        if fresh:
+            ksp = PETSc.KSP().create(COMM)
+        ksp.setOperators(mat, mat)
+        if fresh:                               # a second KSPSetFromOptions would make a new python context
+            ksp.setFromOptions()
+        ksp.solve(bv, x)
+    finally:
+        for k in {**base, **dict(opts)}:
+            db.delValue(k)
+    r = bv.duplicate()
+    mat.mult(x, r)
+    r.aypx(-1.0, bv)
+    nsp = mat.getNullSpace()
+    if nsp.handle:
+        nsp.remove(r)
+    return ksp.getConvergedReason(), ksp.getIterationNumber(), r.norm() / bv.norm(), ksp
+
+
+def outcome(mat, b, opts=(), ksp=None) -> tuple:
+    reason, its, relres, ksp = solve(mat, b, opts, ksp)
+    ctx = ksp.getPC().getPythonContext()
+    if reason > 0:
+        return f"converged {its} {relres:.1e} {ctx.analysis_count} {ctx.numeric_count}", ksp
+    return f"diverged {reason_name(reason)}", ksp
+
+
+def sealed(A, rows):
+    """A with every coupling between ``rows`` and the others stored as an explicit zero (a sealed region)."""
+    A = sp.csr_matrix(A, copy=True)
+    inside = np.zeros(A.shape[0], dtype=bool)
+    inside[rows] = True
+    r = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    cut = inside[r] != inside[A.indices]
+    A.data[cut] = 0.0
+    A.data[r == A.indices] = 0.0
+    A.data[r == A.indices] = -np.bincount(r[r != A.indices], A.data[r != A.indices], A.shape[0])
+    return A
+
+
+def regions(A):
+    from scipy.sparse.csgraph import connected_components
+
+    B = A.multiply(A != 0).tocsr()
+    return connected_components(B, directed=False)[1]
+
+
+def case_nan():
+    A = BASE.A.copy()
+    A.data[-1] = np.nan                         # the last row: rank 1's on two ranks
+    return outcome(dist(A, regions(BASE.A)), BASE.b)[0]
+
+
+def case_inf():
+    A = BASE.A.copy()
+    A.data[-3] = np.inf
+    return outcome(dist(A, regions(BASE.A)), BASE.b)[0]
+
+
+def case_empty_row():
+    A = BASE.A.tolil()
+    A.rows[N - 1], A.data[N - 1] = [], []
+    A = sp.csr_matrix(A)
+    return outcome(dist(A, symmetric=False), BASE.b)[0]
+
+
+def case_zero_diagonal():
+    return outcome(dist(_set_diag(N - 2, 0.0)), BASE.b)[0]
+
+
+def _set_diag(i, value):
+    A = BASE.A.tolil()
+    A[i, i] = value
+    return sp.csr_matrix(A)
+
+
+def case_negative_diagonal():
+    return outcome(dist(_set_diag(N - 2, -1.0)), BASE.b)[0]
+
+
+def case_nonsymmetric():
+    A = BASE.A.tolil()
+    j = next(c for c in A.rows[5] if c != 5)
+    A[5, j] = 3.0 * A[5, j]                     # one coupling three times its mirror
+    return outcome(dist(sp.csr_matrix(A), symmetric=False), BASE.b)[0]
+
+
+def case_indefinite():
+    """Symmetric with a positive diagonal but indefinite: every coupling +3 |a_ij| (a checkerboard vector
+    has a negative Rayleigh quotient)."""
+    A = sp.csr_matrix(BASE.A, copy=True)
+    r = np.repeat(np.arange(N), np.diff(A.indptr))
+    A.data[r != A.indices] *= -3.0
+    return outcome(dist(A), BASE.b)[0]
+
+
+def case_nonsquare():
+    mat = PETSc.Mat().createAIJ(size=((None, N), (None, N + 1)), nnz=1, comm=COMM)
+    lo, hi = mat.getOwnershipRange()
+    for i in range(lo, hi):
+        mat.setValue(i, i, 1.0)
+    mat.assemble()
+    return outcome(mat, np.ones(N))[0]
+
+
+def case_empty_matrix():
+    mat = PETSc.Mat().createAIJ(size=((None, N), (None, N)), nnz=1, comm=COMM)
+    mat.assemble()
+    return outcome(mat, np.ones(N))[0]
+
+
+def case_rank_without_rows():
+    rows_on = [N] + [0] * (COMM.getSize() - 1)
+    return outcome(dist(BASE.A, regions(BASE.A), rows_on=rows_on), BASE.b)[0]
+
+
+def case_explicit_zeros():
+    """A sealed region whose couplings to the rest are stored zeros, one null vector per region attached."""
+    ix = np.rint(BASE.coords[:, 0] * 32 - 0.5)
+    iy = np.rint(BASE.coords[:, 1] * 32 - 0.5)
+    A = sealed(BASE.A, np.flatnonzero((ix < 8) & (iy < 8)))
+    reg = regions(A)
+    b = BASE.b - (np.bincount(reg, BASE.b) / np.bincount(reg))[reg]
+    return outcome(dist(A, reg), b)[0]
+
+
+def _three_regions():
+    blocks = [make_frame(256, seed=s).A for s in (1, 2, 3)]
+    A = sp.csr_matrix(sp.block_diag(blocks))
+    reg = np.repeat(np.arange(3), 256)
+    b = np.random.default_rng(0).standard_normal(768)
+    return A, reg, b - (np.bincount(reg, b) / 256)[reg]
+
+
+def case_null_components_attached():
+    A, reg, b = _three_regions()
+    return outcome(dist(A, reg), b)[0]
+
+
+def case_null_components_detected():
+    A, reg, b = _three_regions()
+    return outcome(dist(A), b)[0]
+
+
+def case_pattern_change():
+    """The same KSP gets a matrix of the same size with more couplings (a new pattern)."""
+    out, ksp = outcome(dist(BASE.A, regions(BASE.A)), BASE.b)
+    extra = sp.diags([np.full(N - 40, -0.5)], [40], shape=(N, N))
+    A = sp.csr_matrix(BASE.A + extra + extra.T + sp.diags(np.asarray(-(extra + extra.T).sum(1)).ravel()))
+    return outcome(dist(A, regions(A)), BASE.b, ksp=ksp)[0]
+
+
+def case_values_only():
+    mat = dist(BASE.A, regions(BASE.A))
+    _, ksp = outcome(mat, BASE.b)
+    mat.scale(3.0)
+    return outcome(mat, BASE.b, ksp=ksp)[0]
+
+
+def case_missing_checkpoint():
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b,
+                   {"htp_variant": "paper", "htp_checkpoint": "/nonexistent/model.pt"})[0]
+
+
+def case_corrupt_checkpoint():
+    path = Path(sys.argv[1]) / "corrupt.pt"
+    if COMM.getRank() == 0:
+        path.write_bytes(b"not a torch checkpoint" * 8)
+    COMM.barrier()
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_variant": "paper", "htp_checkpoint": str(path)})[0]
+
+
+def case_unknown_form():
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_form": "banana"})[0]
+
+
+def case_unknown_coarse():
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse": "fancy"})[0]
+
+
+def main():
+    for name, fn in sorted((k, v) for k, v in globals().items() if k.startswith("case_")):
+        try:
+            text = fn()
+        except Exception as exc:  # the case's outcome: the deepest named error (ValueError) of the chain
+            chain = [exc]
+            while chain[-1].__cause__ is not None:
+                chain.append(chain[-1].__cause__)
+            named = [e for e in chain if isinstance(e, ValueError)]
+            exc = named[-1] if named else chain[-1]
+            text = "error: " + (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            if not named:
+                text += f" [{type(exc).__name__}]"
+        print(f"CASE {name[5:]} rank {COMM.getRank()}: {text}", flush=True)
+        COMM.barrier()
+
+
+if __name__ == "__main__":
+    main()

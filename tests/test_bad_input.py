@@ -1,0 +1,81 @@
+"""Bad input to HTPPC on 1 and 2 MPI ranks: each case ends in a named error or a correct solve, on every rank.
+
+The cases live in ``tests/bad_input_cases.py``, run under real ``mpiexec`` with a timeout (a hang fails).
+"""
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("petsc4py")
+
+HERE = Path(__file__).resolve().parent
+MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import__('os').environ.get('PATH', '')}")
+TIMEOUT = 300
+CONVERGED = r"converged \d+ (\d\.\de-\d\d) (\d+) (\d+)"
+
+# case -> expected outcome (a regex matched against the whole line) on 1 rank and on 2 ranks
+EXPECTED = {
+    "nan": r"error: the matrix has NaN or Inf entries in 1 row\(s\), the first global row 1023;.*",
+    "inf": r"error: the matrix has NaN or Inf entries in 1 row\(s\), the first global row 1023;.*",
+    "empty_row": r"error: the matrix has empty rows in 1 row\(s\), the first global row 1023;.*",
+    "zero_diagonal": r"error: the matrix has missing or zero diagonal entries in 1 row\(s\), the first global row 1022;.*",
+    "negative_diagonal": r"error: the matrix has negative diagonal entries in 1 row\(s\), the first global row 1022;.*",
+    "nonsymmetric": r"error: the matrix is not symmetric \(random probe .*MAT_SYMMETRIC.*",
+    "indefinite": r"diverged DIVERGED_INDEFINITE_(MAT|PC)",
+    "nonsquare": r"error: HTPPC needs a square matrix, got 1024 x 1025 \(non-square\)",
+    "empty_matrix": r"error: HTPPC got an empty matrix \(1024 x 1024 with no nonzeros\)",
+    "rank_without_rows": {1: CONVERGED,
+                          2: r"error: the matrix has a rank without rows;.*every rank owning rows"},
+    "explicit_zeros": CONVERGED,
+    "null_components_attached": CONVERGED,
+    "null_components_detected": CONVERGED,
+    "pattern_change": CONVERGED,
+    "values_only": CONVERGED,
+    "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
+    "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
+    "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
+    "unknown_coarse": r"error: -htp_coarse 'fancy' unknown; use one of const, eig, learned",
+}
+# setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
+SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2")}
+
+pytestmark = [pytest.mark.mpi, pytest.mark.slow, pytest.mark.skipif(MPIEXEC is None, reason="mpiexec not found")]
+
+
+@pytest.fixture(scope="module", params=[1, 2])
+def outcomes(request, tmp_path_factory):
+    """{(case, rank): outcome} of one run of every case on ``n`` ranks, and ``n``."""
+    n = request.param
+    proc = subprocess.run([MPIEXEC, "-n", str(n), sys.executable, str(HERE / "bad_input_cases.py"),
+                           str(tmp_path_factory.mktemp(f"bad{n}"))],
+                          capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    # ranks print whole lines, but two ranks' lines may meet without a newline between them
+    found = re.findall(r"CASE (\w+) rank (\d+): (.*?)\s*(?=CASE |\Z)", proc.stdout, re.S)
+    got = {(case, int(rank)): text for case, rank, text in found}
+    assert len(got) == len(found), "a case printed twice"
+    return got, n
+
+
+def test_at_least_15_cases_each_on_every_rank(outcomes):
+    got, n = outcomes
+    assert len(EXPECTED) >= 15
+    assert set(got) == {(case, r) for case in EXPECTED for r in range(n)}
+
+
+@pytest.mark.parametrize("case", sorted(EXPECTED))
+def test_outcome(outcomes, case):
+    got, n = outcomes
+    want = EXPECTED[case] if isinstance(EXPECTED[case], str) else EXPECTED[case][n]
+    texts = [got[(case, r)] for r in range(n)]
+    for r, text in enumerate(texts):
+        assert re.fullmatch(want, text), (case, r, text)
+    assert len(set(texts)) == 1, texts                    # every rank tells the same story
+    if want == CONVERGED:
+        relres, analyses, numeric = re.fullmatch(CONVERGED, texts[0]).groups()
+        assert float(relres) <= 1.01e-8                   # the true residual, null space removed
+        assert (analyses, numeric) == SETUPS.get(case, ("1", "1"))
