@@ -209,6 +209,18 @@ def test_failing_methods_become_failure_rows(env, tmp_path):
     assert "Failures:" in report
 
 
+def test_bare_study_solves_the_dirichlet_problem_with_every_method(env, tmp_path):
+    out = tmp_path / "bare"
+    assert main(["--quick", "--out", str(out), "--studies", "bare", "--methods", "cg_icc", "cg_gamg", "cg_htp",
+                 "pyamg", *env["common"]]) == 0
+    rows = by_method(rows_of(out, "bare"))
+    for m, got in rows.items():                      # nonsingular: b is not projected, x = 0 is no answer
+        assert [r["n"] for r in got] == [32 * 32] and got[0]["ok"] and got[0]["relres"] <= 1e-8, got
+    assert rows["cg_htp"][0]["iterations"] < rows["cg_icc"][0]["iterations"]
+    assert rows["pyamg"][0]["iterations"] > 0
+    assert "## A bare single solve" in (out / "report.md").read_text()
+
+
 def test_unknown_method_is_a_usage_error(env, tmp_path, capsys):
     assert main(["--quick", "--out", str(tmp_path / "x"), "--methods", "cg_nothing"]) == 2
     assert "cg_nothing" in capsys.readouterr().err
