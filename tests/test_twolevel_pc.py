@@ -137,6 +137,16 @@ def test_plain_gmres_reaches_the_requested_tolerance(frames, side):
         assert np.linalg.norm(m_apply(b - A @ x)) / np.linalg.norm(m_apply(b)) <= 1.01e-8
 
 
+@pytest.mark.parametrize("ksp_type", ["cg", "fgmres", "minres", "bcgs"])
+def test_any_ksp_reaches_its_rtol_in_the_true_residual(frames, ksp_type):
+    """HTPPC as it comes under other Krylov methods (auto form: balanced where M must be symmetric)."""
+    frame = frames[0]
+    reason, its, relres, ksp = solve(petsc_mat(frame.A), frame.b, ksp_type=ksp_type, htp_variant=None)
+    form = ksp.getPC().getPythonContext().setup.form(ksp_type)
+    assert reason > 0 and relres <= 1.01e-8 and its <= 40, (reason_name(reason), its, relres)
+    assert form == ("balanced" if ksp_type == "minres" else "deflated")
+
+
 def test_values_change_reuses_the_analysis(frames):
     frame = frames[0]
     mat = petsc_mat(frame.A)
