@@ -1,16 +1,19 @@
 #!/usr/bin/env python
-"""Two-phase flow: a heavy blob splashes into a pool; one PETSc pressure solve per frame.
+"""Two-phase flow: a heavy blob splashes into a pool; one PETSc pressure solve per frame, in 2-D or 3-D.
 
     python examples/multiphase_flow.py -options_file options/cg_gamg.opts
     python examples/multiphase_flow.py -options_file options/cg_icc.opts -reuse_every 5 -animate
     python examples/multiphase_flow.py -compare options/cg_gamg.opts,options/cg_icc.opts
+    python examples/multiphase_flow.py -dim 3 -options_file cg_htp -animate      # a drop in a 48^3 box
 
 Method files are loaded by :class:`petsc_htp.methods.Loaded` (a shipped
 name such as ``cg_gamg`` works too); the simulation itself is
 :func:`petsc_htp.sim.simulation.simulate`.
 
 Options
-    -nx, -ny N          grid cells (default 64; 32 with -quick)
+    -dim D              2 (default) or 3: a heavy drop falls past a plate into a pool in a closed box
+    -nx N               cells across (default 64 in 2-D, 48 in 3-D; 32 / 16 with -quick)
+    -ny, -nz N          cells up (2-D) or deep (3-D), and up (3-D) (default as -nx)
     -frames F           frames (default 50; 6 with -quick)
     -density_ratio R    heavy / light density (default 1000)
     -seed S             blob jitter (default 0)
@@ -20,7 +23,8 @@ Options
                         spot and goes on from its iterate (default 1.5)
     -out DIR            output folder (default results/flow)
     -quick              a few frames at 32 x 32
-    -animate            also write DIR/METHOD.gif (density and pressure)
+    -animate            also write DIR/METHOD.gif (density and pressure; in 3-D the heavy phase shaded
+                        as seen along y, and the pressure's central slice)
     -method_name NAME   label of a single run (default: the options file's name)
     -compare F1,F2,...  run each method file on the same scene, each in a fresh
                         KSP under the prefix NAME_; one chart DIR/compare.png
@@ -64,8 +68,13 @@ def parse_options():
     """The example's options from the PETSc database, validated (ValueError otherwise)."""
     db = PETSc.Options()
     quick = db.getBool("quick", False)
+    dim = db.getInt("dim", 2)
+    if dim not in (2, 3):
+        raise ValueError(f"-dim must be 2 or 3, got {dim}")
+    side = (32 if quick else 64) if dim == 2 else (16 if quick else 48)
+    nx = db.getInt("nx", side)
     cfg = {
-        "nx": db.getInt("nx", 32 if quick else 64), "ny": db.getInt("ny", 32 if quick else 64),
+        "nx": nx, "ny": db.getInt("ny", nx), "nz": db.getInt("nz", nx) if dim == 3 else None,
         "frames": db.getInt("frames", 6 if quick else 50),
         "density_ratio": db.getReal("density_ratio", 1000.0), "seed": db.getInt("seed", 0),
         "reuse_every": db.getInt("reuse_every", 0), "reuse_growth": db.getReal("reuse_growth", 1.5),
@@ -79,7 +88,7 @@ def parse_options():
         raise ValueError(f"-reuse_every must be >= 0, got {cfg['reuse_every']}")
     if not cfg["reuse_growth"] >= 1.0:
         raise ValueError(f"-reuse_growth must be >= 1, got {cfg['reuse_growth']}")
-    Flow(cfg["nx"], cfg["ny"], density_ratio=cfg["density_ratio"], seed=cfg["seed"])  # validates
+    Flow(cfg["nx"], cfg["ny"], density_ratio=cfg["density_ratio"], seed=cfg["seed"], nz=cfg["nz"])  # validates
     return cfg
 
 

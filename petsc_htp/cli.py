@@ -14,9 +14,9 @@ def _scene(args):
     from .scenes.generator import frame_summary, make_frame
 
     frame = make_frame(args.n, seed=args.seed, distribution=args.distribution,
-                       contrast=tuple(args.contrast) if args.contrast else None, rhs=args.rhs)
+                       contrast=tuple(args.contrast) if args.contrast else None, rhs=args.rhs, dim=args.dim)
     print(frame_summary(frame))
-    out = Path(args.out or f"scene_n{args.n}_s{args.seed}")
+    out = Path(args.out or f"scene{'3d' if args.dim == 3 else ''}_n{args.n}_s{args.seed}")
     save_frames([frame], out.with_suffix(".npz"))
     plot_frame(frame, out.with_suffix(".png"))
     print(f"wrote {out.with_suffix('.npz')} and {out.with_suffix('.png')}")
@@ -68,6 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("scene", help="generate one multiphase Poisson frame (.npz + .png)")
     s.add_argument("-n", type=int, default=4096)
+    s.add_argument("--dim", type=int, default=2, choices=[2, 3],
+                   help="2 or 3 (3-D: near-cubic box, 7-point operator; the picture shows slices and a projection)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--distribution", default="full")
     s.add_argument("--contrast", type=float, nargs=2, metavar=("LO", "HI"))

@@ -17,10 +17,10 @@ def _check_square(A):
 
 
 def _check_coords(coords, n):
-    """Return ``coords`` as a float (n, 2) array, or raise ValueError."""
+    """Return ``coords`` as a float (n, 2) or (n, 3) array, or raise ValueError."""
     pts = np.asarray(coords, dtype=np.float64)
-    if pts.shape != (n, 2):
-        raise ValueError(f"coords must have shape ({n}, 2), got {pts.shape}")
+    if pts.ndim != 2 or pts.shape[0] != n or pts.shape[1] not in (2, 3):
+        raise ValueError(f"coords must have shape ({n}, 2) or ({n}, 3), got {pts.shape}")
     return pts
 
 
@@ -52,7 +52,7 @@ def choose_ordering(A, coords=None, method="auto"):
     Parameters
     ----------
     A : scipy.sparse matrix, shape (N, N)
-    coords : array_like, shape (N, 2), optional
+    coords : array_like, shape (N, 2) or (N, 3), optional
         Point coordinates of the rows.
     method : {'auto', 'morton', 'rcm', 'natural'}
         'auto' keeps rows already in Morton order ("morton (given)"), else

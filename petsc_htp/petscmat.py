@@ -14,7 +14,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .twolevel.nullspace import null_regions
 
-__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace"]
+__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace", "preallocated_aij",
+           "local_csr", "gathered"]
 
 COORDS_ATTR = "petsc_htp_coords"
 DENSITY_ATTR = "petsc_htp_density"
@@ -43,7 +44,7 @@ def attach(mat, coords=None, density=None):
     ----------
     mat : petsc4py.PETSc.Mat
         The preconditioning matrix (sequential or distributed AIJ).
-    coords : array_like, shape (N, 2) or (n_local, 2), optional
+    coords : array_like, shape (N, d) or (n_local, d), d = 2 or 3, optional
         Point coordinates of the rows (global array, or this rank's rows).
         With coordinates HTP uses the Morton ordering (or keeps rows already in
         Morton order) and geometric features.
@@ -63,7 +64,8 @@ def attach(mat, coords=None, density=None):
     on every rank of a parallel matrix. Returns ``mat``.
     """
     local = {}
-    for attr, values, what, width in ((COORDS_ATTR, coords, "coords", 2), (DENSITY_ATTR, density, "density", None)):
+    dim = 3 if coords is not None and np.ndim(coords) == 2 and np.shape(coords)[1] == 3 else 2
+    for attr, values, what, width in ((COORDS_ATTR, coords, "coords", dim), (DENSITY_ATTR, density, "density", None)):
         local[attr] = None if values is None else _local_rows(mat, values, what, width)
         if local[attr] is not None and not np.all(np.isfinite(local[attr])):
             raise ValueError(f"{what} must be finite")
@@ -182,6 +184,47 @@ def region_nullspace(mat, regions, null=None):
     return PETSc.NullSpace().create(vectors=vectors, comm=comm)
 
 
+def preallocated_aij(A, comm=None):
+    """A distributed AIJ preallocated for the scipy CSR ``A``'s pattern, each rank its block of rows (PETSc's
+    default split), no values yet; returns ``(mat, start, end)``, this rank's rows ``start:end``.
+
+    ``MAT_NEW_NONZERO_ALLOCATION_ERR`` is set (on every rank: a flag that differs across ranks deadlocks MPIAIJ
+    assembly); insert the rows with ``mat.setValuesCSR(*local_csr(A, start, end))``.
+    """
+    comm = PETSc.COMM_WORLD if comm is None else PETSc.Comm(comm)
+    n = A.shape[0]
+    start, end = _ownership_range(n, comm.getSize(), comm.getRank())
+    indptr, indices, _ = local_csr(A, start, end)
+    row_nnz = np.diff(indptr)
+    in_block = (indices >= start) & (indices < end)
+    d_nnz = np.bincount(np.repeat(np.arange(end - start), row_nnz)[in_block], minlength=end - start)
+    mat = PETSc.Mat().createAIJ(size=((end - start, n), (end - start, n)),
+                                nnz=(d_nnz.astype(PETSc.IntType), (row_nnz - d_nnz).astype(PETSc.IntType)),
+                                comm=comm)
+    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    return mat, start, end
+
+
+def local_csr(A, start, end) -> tuple:
+    """Rows ``start:end`` of the scipy CSR ``A`` as PETSc CSR arrays (indptr, global column indices, values)."""
+    lo, hi = A.indptr[start], A.indptr[end]
+    return ((A.indptr[start:end + 1] - lo).astype(PETSc.IntType), A.indices[lo:hi].astype(PETSc.IntType),
+            A.data[lo:hi])
+
+
+def gathered(vec) -> np.ndarray:
+    """The whole of a (distributed) Vec as a numpy array on every rank."""
+    if vec.getComm().getSize() == 1:
+        return vec.getArray().copy()
+    scatter, full = PETSc.Scatter.toAll(vec)
+    try:
+        scatter.scatter(vec, full, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        return full.getArray().copy()
+    finally:
+        scatter.destroy()
+        full.destroy()
+
+
 def frame_mat(frame, comm=None):
     """Distributed PETSc AIJ copy of a frame's ``A`` with its null space (one constant per connected region
     whose row sums vanish; none for a nonsingular A).
@@ -195,25 +238,8 @@ def frame_mat(frame, comm=None):
     -------
     petsc4py.PETSc.Mat
     """
-    comm = PETSc.COMM_WORLD if comm is None else PETSc.Comm(comm)
-    start, end = _ownership_range(frame.n, comm.getSize(), comm.getRank())
-    local = frame.A[start:end]
-    indptr = local.indptr.astype(PETSc.IntType)
-    indices = local.indices.astype(PETSc.IntType)
-    row_nnz = np.diff(indptr)
-    in_block = (indices >= start) & (indices < end)
-    row_of_entry = np.repeat(np.arange(end - start), row_nnz)
-    d_nnz = np.bincount(row_of_entry[in_block], minlength=end - start)
-    d_nnz = d_nnz.astype(PETSc.IntType)
-    mat = PETSc.Mat().createAIJ(
-        size=((end - start, frame.n), (end - start, frame.n)),
-        nnz=(d_nnz, row_nnz - d_nnz),
-        comm=comm,
-    )
-    # Set on every rank: petsc4py preallocates ranks without rows differently,
-    # and a flag that differs across ranks deadlocks MPIAIJ assembly.
-    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-    mat.setValuesCSR(indptr, indices, local.data)
+    mat, start, end = preallocated_aij(frame.A, comm)
+    mat.setValuesCSR(*local_csr(frame.A, start, end))
     mat.assemble()
     regions = connected_components(frame.A, directed=False)[1]
     null = null_regions(frame.A, regions)
@@ -221,7 +247,6 @@ def frame_mat(frame, comm=None):
         mat.setNullSpace(region_nullspace(mat, regions, null))
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     return mat
-
 
 
 def frame_vec(frame, mat):

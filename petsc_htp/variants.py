@@ -43,6 +43,11 @@ class Paper:
                 f"{mat.getComm().getSize()} ranks; use -htp_variant twolevel (a global coarse space), or "
                 "precondition each rank's block with -pc_type bjacobi -sub_pc_type python "
                 "-sub_pc_python_type petsc_htp.HTPPC")
+        if coords is not None and coords.shape[1] != 2:
+            raise ValueError(
+                f"-htp_variant paper is 2-D only: its network was trained on 2-D scenes and reads 2-D cell "
+                f"coordinates (its features and quadtree partition), but {coords.shape[1]}-D coordinates are "
+                "attached; use -htp_variant twolevel (the default), which takes 3-D problems")
         return self.htp.analyse(A, coords, self.opts.ordering)
 
     def numeric(self, analysis, mat, A, density, previous):
@@ -86,6 +91,11 @@ class TwoLevel:
 
     def analyse(self, mat, A, coords):
         """Leaves, index maps, components and every matrix with its pattern (see :class:`twolevelpc.TwoLevelPC`)."""
+        if self.net is not None and coords is not None and coords.shape[1] != 2:
+            raise ValueError(
+                f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
+                f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
+                "-htp_coarse eig (the default) or const")
         return twolevelpc.TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
     def numeric(self, analysis, mat, A, density, previous):

@@ -206,7 +206,53 @@ def test_heavy_blob_falls():
     assert sim.max_divergence() < 1e-8
 
 
-@pytest.mark.parametrize("kwargs", [{"nx": 4, "ny": 32}, {"nx": 32, "ny": 32.5},
+@pytest.mark.slow
+def test_3d_quick_run_with_htppc_and_its_animation(tmp_path):
+    proc = run_example(tmp_path, "-dim", "3", "-options_file", "options/cg_htp.opts", "-animate")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    records = read_records(tmp_path / "cg_htp.jsonl")
+    assert [r["frame"] for r in records] == list(range(6))
+    for r in records:                                      # 16^3 box, the plate's cells are no unknowns
+        assert r["n"] == 16 ** 3 - 48 and r["reason"].startswith("CONVERGED") and r["relres"] <= 1.5 * RTOL
+        assert 10 <= r["its"] <= 40 and r["div_after"] < 1e-5 * r["div_before"]
+    heavy = [r["mass_heavy"] for r in records]
+    assert max(abs(m - heavy[0]) for m in heavy) <= MASS_RTOL * heavy[0]
+    assert (tmp_path / "cg_htp.gif").read_bytes()[:6] == b"GIF89a" and (tmp_path / "cg_htp.png").exists()
+
+
+def test_3d_flow_falls_keeps_its_pattern_and_mass():
+    sim = Flow(12, 10, density_ratio=100.0, seed=1, nz=14)
+    assert sim.dim == 3 and sim.coords.shape == (sim.n, 3) and sim.n < 12 * 10 * 14
+    assert np.all(np.diff(morton_code(*sim.idx).astype(np.int64)) > 0)
+    mass = sim.phase_mass()
+    upper = sim.coords[:, 2] > 0.5                        # the drop, above the pool
+    height = lambda: np.average(sim.coords[upper, 2], weights=sim.density()[upper] - 1.0)   # noqa: E731
+    start, p, pattern = height(), np.zeros(sim.n), None
+    for _ in range(6):
+        A, b, p = step(sim, p)
+        assert abs(A - A.T).max() == 0 and np.allclose(A @ np.ones(sim.n), 0) and np.diff(A.indptr).max() <= 7
+        pattern = pattern or (A.indptr.copy(), A.indices.copy())
+        assert np.array_equal(A.indptr, pattern[0]) and np.array_equal(A.indices, pattern[1])
+    assert height() < start - 0.01 and sim.max_divergence() < 1e-8
+    np.testing.assert_allclose(sim.phase_mass(), mass, rtol=MASS_RTOL)
+
+
+def test_3d_view_shades_the_heavy_phase():
+    from petsc_htp.sim.plot import frame_images, heavy_view
+
+    sim = Flow(16, 16, density_ratio=1000.0, nz=16)
+    view, slice_ = frame_images(sim, np.zeros(sim.n))
+    assert view.shape == (16, 16, 3) and slice_.shape == (16, 16)
+    assert 0 <= view.min() and view.max() <= 1
+    theta = np.zeros((4, 4, 4))
+    theta[:, 2:, :] = 1.0                                  # heavy only at the back
+    back = heavy_view(theta, np.zeros(theta.shape, bool))
+    theta[:, 0, :] = 1.0
+    front = heavy_view(theta, np.zeros(theta.shape, bool))
+    assert np.all(front.sum(-1) > back.sum(-1))            # nearer is brighter
+
+
+@pytest.mark.parametrize("kwargs", [{"nx": 4, "ny": 32}, {"nx": 32, "ny": 32.5}, {"nx": 16, "ny": 16, "nz": 4},
                                     {"nx": 32, "ny": 32, "density_ratio": float("nan")},
                                     {"nx": 32, "ny": 32, "solid": np.ones((32, 32), bool)}])
 def test_flow_rejects_bad_arguments(kwargs):

@@ -60,6 +60,17 @@ def test_morton_code_rejects_bad_input(ix, iy, match):
         morton_code(ix, iy)
 
 
+def test_morton_code_3d_by_hand_and_octree_blocks():
+    np.testing.assert_array_equal(morton_code([1, 0, 0, 1, 3], [0, 1, 0, 1, 3], [0, 0, 1, 1, 3]), [1, 2, 4, 7, 63])
+    assert morton_code(2**21 - 1, 2**21 - 1, 2**21 - 1) == np.uint64(2**63 - 1)
+    with pytest.raises(ValueError, match="iz"):
+        morton_code([0], [0], [2**21])
+    iz, iy, ix = np.unravel_index(np.arange(64), (4, 4, 4))
+    order = morton_permutation(np.column_stack([ix, iy, iz]) + 0.5)
+    for block in order.reshape(8, 8):                   # each run of 8 is one 2 x 2 x 2 octant
+        assert all(np.ptp(axis[block]) == 1 for axis in (ix, iy, iz))
+
+
 def test_morton_permutation_recovers_morton_order_of_shuffled_grid():
     _, coords, ix, iy = shuffled_problem()
     perm = morton_permutation(coords)
@@ -73,7 +84,9 @@ def test_morton_permutation_is_stable_and_validates():
     np.testing.assert_array_equal(morton_permutation(coords), [1, 3, 0, 2])
     np.testing.assert_array_equal(quantized_morton_codes(np.zeros((3, 2))), [0, 0, 0])
     with pytest.raises(ValueError, match="coords must have shape"):
-        morton_permutation(np.zeros((4, 3)))
+        morton_permutation(np.zeros((4, 4)))
+    with pytest.raises(ValueError, match="bits"):
+        quantized_morton_codes(np.zeros((2, 3)), bits=22)       # 3 x 22 bits do not fit 64
     with pytest.raises(ValueError, match="finite"):
         morton_permutation([[0.0, np.nan]])
     with pytest.raises(ValueError, match="bits"):

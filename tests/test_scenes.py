@@ -395,3 +395,86 @@ def test_to_image_places_cells_and_marks_missing():
     np.testing.assert_array_equal(image[0], [0.0, 1.0, 4.0])
     np.testing.assert_array_equal(image[1, :2], [2.0, 3.0])
     assert np.isnan(image[1, 2])
+
+
+# ------------------------------------------------------------------------ 3-D
+
+@pytest.mark.parametrize("n, dims", [(1, (1, 1, 1)), (8, (2, 2, 2)), (9, (3, 3, 1)), (1000, (10, 10, 10)),
+                                     (3000, (15, 15, 14)), (32768, (32, 32, 32))])
+def test_3d_frames_are_near_cubic_boxes_with_the_7_point_operator(n, dims):
+    frame = make_frame(n, seed=2, dim=3)
+    assert grid_dims(n, 3) == frame.grid_shape == dims and frame.dim == 3
+    assert frame.coords.shape == (n, 3) and frame.n == n
+    A = frame.A
+    assert abs(A - A.T).max() == 0 and np.abs(A @ np.ones(n)).max() <= 1e-12 * A.diagonal().max()
+    assert np.diff(A.indptr).max() <= 7 and np.all(A.diagonal() >= 0)
+    if n == 32768:                                          # the interior rows have all 6 neighbours
+        assert np.count_nonzero(np.diff(A.indptr) == 7) == 30 ** 3
+    assert len(np.unique(frame.perm)) == n and frame.perm.max() < np.prod(dims)
+    assert frame.to_image(frame.rho).shape == dims[::-1]
+    assert abs(frame.b.mean()) < 1e-12
+
+
+def test_3d_cells_come_in_octree_order():
+    ix, iy, iz = morton_cells(512, dim=3)
+    for block in np.arange(512).reshape(64, 8):             # each run of 8 cells is a 2 x 2 x 2 octant
+        assert all(np.ptp(axis[block]) == 1 for axis in (ix, iy, iz))
+    for block in np.arange(512).reshape(8, 64):             # each run of 64 a 4 x 4 x 4 one
+        assert all(np.ptp(axis[block]) == 3 for axis in (ix, iy, iz))
+
+
+@pytest.mark.parametrize("normal, gap", [("x", "top"), ("y", "bottom"), ("z", "middle_hole"), ("x", "closed")])
+def test_3d_slabs_leave_the_same_open_fraction_as_2d_gaps(normal, gap):
+    side = 40
+    iz, iy, ix = np.unravel_index(np.arange(side ** 3), (side,) * 3)
+    coords = (np.column_stack([ix, iy, iz]) + 0.5) / side
+    slab = {"orientation": normal, "center": 0.5, "thickness": 0.2, "gap": gap}
+    mask = barrier_mask(slab, coords, gap_width=0.25)
+    axis = "xyz".index(normal)
+    band = np.abs(coords[:, axis] - 0.5) <= 0.1
+    assert not mask[~band].any()
+    open_fraction = 1 - mask[band].mean()
+    assert open_fraction == pytest.approx(0.0 if gap == "closed" else 0.25, abs=0.03)
+    if gap == "top":                                        # the gap is at the top (z), along the whole slab
+        assert not mask[band & (coords[:, 2] > 0.8)].any() and mask[band & (coords[:, 2] < 0.7)].all()
+
+
+def test_3d_buoyancy_rhs_is_minus_d_rho_dz():
+    rho = np.array([1.0, 1.0, 1.0, 1.0, 3.0, 3.0, 3.0, 3.0])            # heavy top layer of a 2 x 2 x 2 box
+    ix, iy, iz = np.array([0, 1, 0, 1, 0, 1, 0, 1]), np.array([0, 0, 1, 1, 0, 0, 1, 1]), np.repeat([0, 1], 4)
+    np.testing.assert_allclose(buoyancy_rhs(rho, ix, iy, iz), np.zeros(8))   # -2 everywhere, mean removed
+    rho[4] = 5.0
+    b = buoyancy_rhs(rho, ix, iy, iz)
+    assert b[0] < b[1] and b[4] < b[5] and abs(b.sum()) < 1e-12
+
+
+def test_3d_samples_slabs_and_keeps_2d_frames(tmp_path):
+    scene = sample_params(np.random.default_rng(0), dim=3)
+    assert all(b["orientation"] in ("x", "y", "z") for b in scene["barriers"])
+    frames = load_dataset(1000, "test", count=2, cache_dir=tmp_path, dim=3)
+    assert [f.params["dim"] for f in frames] == [3, 3] and frames[0].grid_shape == (10, 10, 10)
+    assert_frames_identical(load_dataset(1000, "test", count=2, cache_dir=tmp_path, dim=3)[1], frames[1])
+    flat = load_dataset(1000, "test", count=2, cache_dir=tmp_path)
+    assert flat[0].grid_shape == (32, 32) and "dim" not in flat[0].params
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["multiphase3d_n1000_test_full_c2.npz",
+                                                          "multiphase_n1000_test_full_c2.npz"]
+    with pytest.raises(ValueError, match="dim must be 2 or 3"):
+        make_frame(100, dim=4)
+
+
+def test_3d_picture_shows_slices_and_a_projection(tmp_path):
+    frame = make_frame(4096, seed=1, dim=3)
+    plot_frame(frame, tmp_path / "f.png", pressure=frame.b)
+    assert (tmp_path / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "grid=16x16x16" in frame_summary(frame)
+
+
+@pytest.mark.slow
+def test_scene_cli_dim_3(tmp_path):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "petsc_htp.cli", "scene", "-n", "1000", "--dim", "3", "--out",
+                          str(tmp_path / "s")], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert "grid=10x10x10" in out.stdout and (tmp_path / "s.png").exists() and (tmp_path / "s.npz").exists()

@@ -366,3 +366,34 @@ def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
     basis = coarsenet.learned_vectors(coarsenet.cached()[0], an, frame.A, frame.coords, frame.rho)
     torch_its = pcg(frame.A, frame.b, factor(an, frame.A, "seeded", basis=basis).apply, 1e-8).iterations
     assert reason > 0 and relres <= 1.01e-8 and abs(its - torch_its) <= 2, (its, torch_its)
+
+
+# ------------------------------------------------------------------------ 3-D
+
+@pytest.fixture(scope="module")
+def cube():
+    from petsc_htp.scenes.generator import make_frame
+
+    return make_frame(4096, seed=1_000_000, dim=3)
+
+
+def test_3d_frame_with_coordinates_and_bare(cube):
+    mat = petsc_mat(cube.A)
+    petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
+    reason, its, relres, ksp = solve(mat, cube.b, htp_variant=None)
+    leaves = ksp.getPC().getPythonContext().setup.leaves
+    assert reason > 0 and relres <= 1.01e-8 and its <= 40 and leaves.kind.startswith("morton")
+    p = np.random.default_rng(0).permutation(cube.n)
+    reason, bare_its, relres, ksp = solve(petsc_mat(cube.A[p][:, p]), cube.b[p], htp_variant=None)
+    assert reason > 0 and relres <= 1.01e-8 and bare_its <= 45
+    assert ksp.getPC().getPythonContext().setup.leaves.kind == "metis"      # not 2-D-like: METIS parts
+
+
+@pytest.mark.parametrize("opts, message", [({"htp_variant": "paper"}, "-htp_variant paper is 2-D only"),
+                                           ({"htp_coarse": "learned"}, "-htp_coarse learned is 2-D only")])
+def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
+    mat = petsc_mat(cube.A)
+    petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
+    with pytest.raises(PETSc.Error) as err:
+        solve(mat, cube.b, **opts)
+    assert message in str(err.value.__cause__)

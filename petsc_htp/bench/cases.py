@@ -39,9 +39,9 @@ class Problem:
         return self.frame.params.get("seed")
 
 
-def held_out_frames(n, count, distribution="full") -> list:
-    """The first ``count`` held-out test frames at ``n`` (cached dataset)."""
-    return load_dataset(n, "test", distribution, count=count)
+def held_out_frames(n, count, distribution="full", dim=2) -> list:
+    """The first ``count`` held-out test frames at ``n`` (cached dataset; ``dim`` 2 or 3)."""
+    return load_dataset(n, "test", distribution, count=count, dim=dim)
 
 
 def held_out_seeds(count) -> list:
@@ -49,6 +49,6 @@ def held_out_seeds(count) -> list:
     return [int(s) for s in dataset_seeds("test", count)]
 
 
-def table_problems(scales, frames) -> list:
+def table_problems(scales, frames, dim=2) -> list:
     """Held-out test frames of the full distribution at every scale, grouped by N."""
-    return [Problem(f) for n in scales for f in held_out_frames(n, frames)]
+    return [Problem(f) for n in scales for f in held_out_frames(n, frames, dim=dim)]

@@ -68,17 +68,28 @@ def _selected(args) -> list:
     return [s for s in STUDIES if s in wanted]
 
 
+def _lead() -> bool:
+    """Whether this process writes and prints: rank 0 of an MPI run (``mpiexec -n 2 petsc-htp bench``)."""
+    from petsc4py import PETSc
+
+    return PETSc.COMM_WORLD.getRank() == 0
+
+
 def _measure(study, ctx, args) -> list:
-    """Run one study's measurement under a progress bar; return its rows."""
+    """Run one study's measurement under a progress bar (rank 0's); return its rows."""
     from tqdm import tqdm
 
     with tqdm(total=study.expected_solves(ctx), desc=study.name, unit="solve", dynamic_ncols=True,
-              disable=args.no_progress) as bar:
+              disable=args.no_progress or not _lead()) as bar:
         return study.measure(ctx, lambda: bar.update(1))
 
 
 def run(args, argv) -> Path:
-    """Measure the selected studies into the results folder; write meta.json and the rows."""
+    """Measure the selected studies into the results folder; write meta.json and the rows (rank 0).
+
+    Under MPI every rank runs every study: PETSc methods solve each frame on all ranks, the serial pyamg and
+    AMGCL on rank 0 alone.
+    """
     import torch
 
     from .meta import collect
@@ -90,16 +101,21 @@ def run(args, argv) -> Path:
     ctx = Context(_settings(args), resolve_methods(args.methods), out, args.checkpoint, args.device, args.threads)
     selected = _selected(args)
     meta = collect(ctx, argv, args.quick, selected)
-    store.write_json(out / store.META, meta)
+    lead = _lead()
+    if lead:
+        store.write_json(out / store.META, meta)
     measured = set()
     for name in selected:
         source = STUDIES[STUDIES[name].data]
         t0 = time.perf_counter()
         if source.name not in measured:
-            store.write_jsonl(store.study_path(out, source.name), _measure(source, ctx, args))
+            rows = _measure(source, ctx, args)
+            if lead:
+                store.write_jsonl(store.study_path(out, source.name), rows)
             measured.add(source.name)
         meta["study_s"][name] = round(time.perf_counter() - t0, 1)
-        store.write_json(out / store.META, meta)
+        if lead:
+            store.write_json(out / store.META, meta)
     return out
 
 
@@ -126,6 +142,8 @@ def main(argv=None) -> int:
             print(f"rewrote the results block of {path}")
             return 0
         out = Path(args.report_only) if args.report_only else run(args, argv)
+        if not _lead():
+            return 0
         table = finish(out)
     except ValueError as exc:
         print(f"petsc-htp bench: error: {exc}", file=sys.stderr)

@@ -72,6 +72,7 @@ def checkpoint_meta(path) -> dict:
 def collect(ctx, argv, quick, selected) -> dict:
     """Everything about the machine and a run of ``selected`` studies in context ``ctx``."""
     import torch
+    from petsc4py import PETSc
 
     from ..paper.inference import resolve_device
     from ..methods import common_setting
@@ -80,7 +81,7 @@ def collect(ctx, argv, quick, selected) -> dict:
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "machine": {"platform": platform.platform(), "cpu": cpu_model(), "cores": os.cpu_count()},
         "commit": git_commit(), "versions": versions(),
-        "threads": {"torch": torch.get_num_threads(), "MPI ranks": 1,
+        "threads": {"torch": torch.get_num_threads(), "MPI ranks": PETSc.COMM_WORLD.getSize(),
                     **{name: os.environ.get(name, "unset") for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}},
         "checkpoint": checkpoint_meta(ctx.checkpoint), "device": str(resolve_device(ctx.device or "auto")),
         "argv": list(argv), "quick": quick, "methods": [m.name for m in ctx.methods], "studies": list(selected),

@@ -16,7 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..methods import Loaded, common_setting, solve
-from ..petscmat import attach, frame_mat, frame_vec
+from ..petscmat import attach, frame_mat, frame_vec, gathered
 from . import external
 
 # Options that only print (the bench records the reason itself).
@@ -128,7 +128,7 @@ def solve_petsc(method, prefix, problem, monitor=False) -> dict:
     ``curve``: [ms since setup start, iteration, ||r|| / ||b||] per iteration.
     """
     frame = problem.frame
-    A = frame_mat(frame, PETSc.COMM_SELF)
+    A = frame_mat(frame)                    # over every rank of the run (one on a plain run)
     if problem.attach:
         attach(A, coords=frame.coords, density=frame.rho)
     b = frame_vec(frame, A)
@@ -143,7 +143,7 @@ def solve_petsc(method, prefix, problem, monitor=False) -> dict:
                "bytes_per_unknown": None if res["htp_bytes"] is None else res["htp_bytes"] / problem.n}
         if monitor:
             row["curve"] = rec.points
-        return _finish(row, frame.A, frame.b, res["x"].getArray().copy(), res["rtol"])
+        return _finish(row, frame.A, frame.b, gathered(res["x"]), res["rtol"])
     finally:
         for obj in (A, b) + ((res["x"],) if res else ()):
             obj.destroy()
@@ -154,8 +154,17 @@ def solve_petsc(method, prefix, problem, monitor=False) -> dict:
 def solve_external(method, problem, monitor=False) -> dict:
     """pyamg or AMGCL (:mod:`petsc_htp.bench.external`) from scratch, with the options files' stopping rule.
 
-    ``rtol`` from ``common.opts`` on the unpreconditioned residual, ``ksp_max_it`` iterations at most.
+    ``rtol`` from ``common.opts`` on the unpreconditioned residual, ``ksp_max_it`` iterations at most. Under
+    MPI these serial solvers run on rank 0 (one core) and every rank gets the row.
     """
+    comm = PETSc.COMM_WORLD
+    if comm.getSize() > 1:                  # a serial solver: rank 0 solves on one core, the others wait
+        row = _external_row(method, problem, monitor) if comm.getRank() == 0 else None
+        return comm.tompi4py().bcast(row, root=0)
+    return _external_row(method, problem, monitor)
+
+
+def _external_row(method, problem, monitor) -> dict:
     frame = problem.frame
     rtol = problem.rtol or common_setting("ksp_rtol", 1e-8)
     res = external.solve(method.name, frame.A, frame.b, rtol, int(common_setting("ksp_max_it", 10000)), monitor)
@@ -170,13 +179,27 @@ def solve_external(method, problem, monitor=False) -> dict:
 # ----------------------------------------------------------------------- driver
 
 def _solve(method, prefix, problem, monitor):
-    """One solve; any exception becomes a failure row."""
+    """One solve; any exception becomes a failure row. The row carries the run's peak memory so far."""
     try:
-        if method.is_petsc:
-            return solve_petsc(method, prefix, problem, monitor)
-        return solve_external(method, problem, monitor)
+        row = (solve_petsc(method, prefix, problem, monitor) if method.is_petsc
+               else solve_external(method, problem, monitor))
     except Exception as exc:  # a failing method is a result, never the end of the run
-        return exception_row(method, problem, exc)
+        row = exception_row(method, problem, exc)
+    row["peak_rss_mb"] = peak_rss_mb()
+    return row
+
+
+def peak_rss_mb() -> float:
+    """The largest resident set of any rank so far, in MiB (collective)."""
+    import resource
+
+    mine = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0        # Linux: KiB
+    comm = PETSc.COMM_WORLD
+    if comm.getSize() == 1:
+        return mine
+    from mpi4py import MPI
+
+    return comm.tompi4py().allreduce(mine, op=MPI.MAX)
 
 
 def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:

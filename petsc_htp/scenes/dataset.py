@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..atomic import atomic_open
-from .generator import GENERATOR_VERSION, Frame, _check_distribution, _check_positive_int, make_frame
+from .generator import GENERATOR_VERSION, Frame, _check_dim, _check_distribution, _check_positive_int, make_frame
 
 TEST_SEED_OFFSET = 1_000_000
 SPLIT_SEED_OFFSETS = {"train": 0, "test": TEST_SEED_OFFSET}
@@ -93,7 +93,7 @@ def _read_cache(path, key):
         return None
 
 
-def load_dataset(n, split="train", distribution="full", count=None, cache_dir=None):
+def load_dataset(n, split="train", distribution="full", count=None, cache_dir=None, dim=2):
     """Load (generating and caching on first use) a dataset of frames.
 
     Parameters
@@ -108,6 +108,8 @@ def load_dataset(n, split="train", distribution="full", count=None, cache_dir=No
         Number of frames; 100 for train and 20 for test by default.
     cache_dir : str or Path, optional
         Cache directory; defaults to :func:`default_cache_dir`.
+    dim : int
+        2 or 3 (3-D scenes, :func:`~petsc_htp.scenes.generator.make_frame` with ``dim=3``).
 
     Returns
     -------
@@ -118,13 +120,13 @@ def load_dataset(n, split="train", distribution="full", count=None, cache_dir=No
     _check_distribution(distribution)
     count = DEFAULT_COUNTS[split] if count is None else count
     seeds = dataset_seeds(split, count)
-    key = json.dumps({"n": n, "split": split, "distribution": distribution,
-                      "count": int(count)}, sort_keys=True)
+    fields = {"n": n, "split": split, "distribution": distribution, "count": int(count)}
+    key = json.dumps(fields if _check_dim(dim) == 2 else {**fields, "dim": 3}, sort_keys=True)
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = directory / f"multiphase_n{n}_{split}_{distribution}_c{count}.npz"
+    path = directory / f"multiphase{'' if dim == 2 else '3d'}_n{n}_{split}_{distribution}_c{count}.npz"
     frames = _read_cache(path, key)
     if frames is None:
-        frames = [make_frame(n, seed=int(s), distribution=distribution) for s in seeds]
+        frames = [make_frame(n, seed=int(s), distribution=distribution, dim=dim) for s in seeds]
         save_frames(frames, path, key)
     return frames
 

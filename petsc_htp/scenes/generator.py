@@ -1,8 +1,11 @@
-"""Multiphase Poisson benchmark generator.
+"""Multiphase Poisson benchmark generator, in 2-D and 3-D.
 
 Implements the scene generator of the paper supplement ("Multiphase Poisson
 Benchmark Generation"): cell-centred grids in Morton order, light fluid with
 heavy barriers, a harmonic-mean 5-point Laplacian with zero-flux boundaries.
+``dim=3`` carries the design over: near-cubic boxes in octree (3-D Morton)
+order, the 7-point Laplacian, and heavy slabs normal to x, y or z whose gaps
+(top, bottom, a middle hole, closed) leave the same fraction of the slab open.
 Cached datasets are in :mod:`petsc_htp.scenes.dataset`, pictures in
 :mod:`petsc_htp.scenes.plot`, PETSc Mat/Vec copies in :mod:`petsc_htp.petscmat`.
 """
@@ -19,6 +22,8 @@ from ..morton import morton_code
 GENERATOR_VERSION = "multiphase-poisson-1"
 TOPOLOGIES = ("top", "bottom", "middle_hole", "closed")
 ORIENTATIONS = ("vertical", "horizontal")
+NORMALS = ("x", "y", "z")        # 3-D slabs: the axis a slab is normal to
+DIMS = (2, 3)
 RHS_KINDS = ("random", "buoyancy")
 DENSITY_NOISE = 0.05
 
@@ -95,53 +100,76 @@ def contrast_range(distribution="full", contrast=None):
 
 # ----------------------------------------------------------------------- grid
 
-def grid_dims(n):
-    """Closest-to-square grid ``(W, H)`` with ``W * H >= n``.
+def _check_dim(dim):
+    """Return ``dim`` (2 or 3), or raise ValueError."""
+    if dim not in DIMS:
+        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    return int(dim)
 
-    ``W = ceil(sqrt(n))`` and ``H = ceil(n / W)``.
+
+def grid_dims(n, dim=2):
+    """Closest-to-square grid ``(W, H)`` with ``W * H >= n``, or closest-to-cubic ``(W, H, D)`` in 3-D.
+
+    2-D: ``W = ceil(sqrt(n))``, ``H = ceil(n / W)``; 3-D: ``W = H = ceil(cbrt(n))``, ``D = ceil(n / W^2)``.
     """
     n = _check_positive_int(n, "n")
-    w = math.isqrt(n)
-    if w * w < n:
+    if _check_dim(dim) == 2:
+        w = math.isqrt(n)
+        if w * w < n:
+            w += 1
+        return w, -(-n // w)
+    w = round(n ** (1 / 3))
+    while w ** 3 < n:
         w += 1
-    return w, -(-n // w)
+    while w > 1 and (w - 1) ** 3 >= n:
+        w -= 1
+    return w, w, -(-n // (w * w))
 
 
-def morton_cells(n):
-    """Grid indices of the first ``n`` cells of the ``W x H`` grid in Morton order.
+def row_major(idx, shape) -> np.ndarray:
+    """Row-major position ``ix + W (iy + H iz)`` of cells with indices ``idx`` in a grid of ``shape``."""
+    pos = np.zeros_like(idx[0])
+    for axis in reversed(range(len(idx))):
+        pos = pos * shape[axis] + idx[axis]
+    return pos
+
+
+def morton_cells(n, dim=2):
+    """Grid indices of the first ``n`` cells of the :func:`grid_dims` grid in Morton (octree in 3-D) order.
 
     Returns
     -------
-    ix, iy : numpy.ndarray of int64, shape (n,)
+    ix, iy[, iz] : numpy.ndarray of int64, shape (n,)
     """
-    w, h = grid_dims(n)
-    iy, ix = np.divmod(np.arange(w * h, dtype=np.int64), w)
-    order = np.argsort(morton_code(ix, iy), kind="stable")[:n]
-    return ix[order], iy[order]
+    shape = grid_dims(n, dim)
+    idx = np.unravel_index(np.arange(math.prod(shape), dtype=np.int64), shape[::-1])[::-1]
+    order = np.argsort(morton_code(*idx), kind="stable")[:n]
+    return tuple(np.asarray(i[order], dtype=np.int64) for i in idx)
 
 
-def _cell_lookup(ix, iy):
-    """Validated cell indices plus a row-major ``(W, H)`` index -> position map."""
-    ix = np.asarray(ix, dtype=np.int64)
-    iy = np.asarray(iy, dtype=np.int64)
-    if ix.ndim != 1 or ix.shape != iy.shape or ix.size == 0:
-        raise ValueError("ix and iy must be non-empty 1-D arrays of equal length")
-    if ix.min() < 0 or iy.min() < 0:
-        raise ValueError("cell indices ix, iy must be non-negative")
-    w, h = int(ix.max()) + 1, int(iy.max()) + 1
-    lookup = np.full(w * h, -1, dtype=np.int64)
-    lookup[iy * w + ix] = np.arange(ix.size)
-    if np.count_nonzero(lookup >= 0) != ix.size:
-        raise ValueError("cell indices (ix, iy) contain duplicate cells")
-    return ix, iy, lookup, (w, h)
+def _cell_lookup(*idx):
+    """Validated cell indices plus a row-major grid index -> position map and the grid's shape."""
+    idx = tuple(np.asarray(i, dtype=np.int64) for i in idx)
+    names = ", ".join(("ix", "iy", "iz")[:len(idx)])
+    if any(i.ndim != 1 or i.shape != idx[0].shape for i in idx) or idx[0].size == 0:
+        raise ValueError(f"{names} must be non-empty 1-D arrays of equal length")
+    if min(int(i.min()) for i in idx) < 0:
+        raise ValueError(f"cell indices {names} must be non-negative")
+    shape = tuple(int(i.max()) + 1 for i in idx)
+    lookup = np.full(math.prod(shape), -1, dtype=np.int64)
+    lookup[row_major(idx, shape)] = np.arange(idx[0].size)
+    if np.count_nonzero(lookup >= 0) != idx[0].size:
+        raise ValueError(f"cell indices ({names}) contain duplicate cells")
+    return idx, lookup, shape
 
 
-def _neighbour(ix, iy, lookup, dims, dx, dy):
-    """Position of each cell's ``(dx, dy)`` neighbour, -1 where absent."""
-    w, h = dims
-    jx, jy = ix + dx, iy + dy
-    inside = (jx >= 0) & (jx < w) & (jy >= 0) & (jy < h)
-    return np.where(inside, lookup[np.where(inside, jy * w + jx, 0)], -1)
+def _neighbour(idx, lookup, shape, axis, step):
+    """Position of each cell's neighbour ``step`` cells along ``axis``, -1 where absent."""
+    moved = list(idx)
+    moved[axis] = idx[axis] + step
+    inside = (moved[axis] >= 0) & (moved[axis] < shape[axis])
+    moved[axis] = np.where(inside, moved[axis], 0)
+    return np.where(inside, lookup[row_major(moved, shape)], -1)
 
 
 def _check_density(rho, n):
@@ -164,17 +192,17 @@ def _loguniform(rng, lo, hi, open_low):
             return value
 
 
-def _sample_barrier(rng, topologies):
-    """Draw one barrier: orientation, centre, thickness and gap topology."""
+def _sample_barrier(rng, topologies, dim=2):
+    """Draw one barrier: orientation (2-D) or normal axis (3-D), centre, thickness and gap topology."""
     return {
-        "orientation": ORIENTATIONS[rng.integers(2)],
+        "orientation": ORIENTATIONS[rng.integers(2)] if dim == 2 else NORMALS[rng.integers(3)],
         "center": float(rng.uniform(0.2, 0.8)),
         "thickness": float(rng.uniform(0.05, 0.20)),
         "gap": topologies[rng.integers(len(topologies))],
     }
 
 
-def sample_params(rng, distribution="full", contrast=None):
+def sample_params(rng, distribution="full", contrast=None, dim=2):
     """Draw the heavy density and 1-3 barriers of one scene.
 
     Parameters
@@ -184,6 +212,8 @@ def sample_params(rng, distribution="full", contrast=None):
         Name in :data:`DISTRIBUTIONS`.
     contrast : (float, float), optional
         Overrides the distribution's contrast range.
+    dim : int
+        2 (barriers 'vertical' or 'horizontal') or 3 (slabs normal to 'x', 'y' or 'z').
 
     Returns
     -------
@@ -195,7 +225,7 @@ def sample_params(rng, distribution="full", contrast=None):
     topologies = DISTRIBUTIONS[distribution].topologies
     rho_heavy = _loguniform(rng, lo, hi, open_low)
     count = int(rng.integers(1, 4))
-    barriers = [_sample_barrier(rng, topologies) for _ in range(count)]
+    barriers = [_sample_barrier(rng, topologies, _check_dim(dim)) for _ in range(count)]
     return {"rho_heavy": rho_heavy, "barriers": barriers}
 
 
@@ -212,6 +242,15 @@ def _gap_mask(gap, along, gap_width):
     raise ValueError(f"unknown gap topology {gap!r}; known: {', '.join(TOPOLOGIES)}")
 
 
+def _slab_gap(gap, u, v, gap_width):
+    """A 3-D slab's gap over its in-plane coordinates ``u`` (up for top/bottom) and ``v``: the same open
+    fraction ``g`` of the slab as a 2-D gap (a full-width strip, or a square hole of side sqrt(g))."""
+    if gap == "middle_hole":
+        half = math.sqrt(gap_width) / 2
+        return (np.abs(u - 0.5) <= half) & (np.abs(v - 0.5) <= half)
+    return _gap_mask(gap, u, gap_width)
+
+
 def barrier_mask(barrier, coords, gap_width=0.25):
     """Boolean mask of the cells inside a barrier's heavy region.
 
@@ -219,11 +258,19 @@ def barrier_mask(barrier, coords, gap_width=0.25):
     ----------
     barrier : dict
         ``orientation``, ``center``, ``thickness`` and ``gap``.
-    coords : numpy.ndarray, shape (N, 2)
+    coords : numpy.ndarray, shape (N, 2) or (N, 3)
         Normalised cell centres.
     gap_width : float
-        Gap width ``g``.
+        Gap width ``g`` (3-D: the open fraction of the slab).
     """
+    if coords.shape[1] == 3:
+        if barrier["orientation"] not in NORMALS:
+            raise ValueError(f"unknown slab normal {barrier['orientation']!r}; known: {', '.join(NORMALS)}")
+        normal = NORMALS.index(barrier["orientation"])
+        u_axis = 2 if normal != 2 else 0                       # 'up' is z unless the slab lies flat
+        v_axis = 3 - normal - u_axis
+        in_band = np.abs(coords[:, normal] - barrier["center"]) <= barrier["thickness"] / 2
+        return in_band & ~_slab_gap(barrier["gap"], coords[:, u_axis], coords[:, v_axis], gap_width)
     if barrier["orientation"] not in ORIENTATIONS:
         raise ValueError(f"unknown barrier orientation {barrier['orientation']!r}")
     x, y = coords[:, 0], coords[:, 1]
@@ -242,29 +289,29 @@ def barrier_density(coords, rho_heavy, barriers, gap_width=0.25):
 
 # ------------------------------------------------------------------- operator
 
-def assemble_operator(rho, ix, iy):
-    """Variable-coefficient 5-point Laplacian with zero-flux boundaries.
+def assemble_operator(rho, *idx):
+    """Variable-coefficient 5-point (2-D) or 7-point (3-D) Laplacian with zero-flux boundaries.
 
     Parameters
     ----------
     rho : array_like, shape (N,)
         Positive cell densities.
-    ix, iy : array_like of int, shape (N,)
+    ix, iy[, iz] : array_like of int, shape (N,)
         Distinct grid indices of the cells; rows follow this order.
 
     Returns
     -------
     scipy.sparse.csr_matrix
-        ``A_ij = -w_ij`` for 4-neighbours with ``w_ij = 2 rho_i rho_j /
+        ``A_ij = -w_ij`` for face neighbours with ``w_ij = 2 rho_i rho_j /
         (rho_i + rho_j)``, ``A_ii = sum_j w_ij``; sorted indices, no
         explicit zeros.
     """
-    ix, iy, lookup, dims = _cell_lookup(ix, iy)
-    n = ix.size
+    idx, lookup, shape = _cell_lookup(*idx)
+    n = idx[0].size
     rho = _check_density(rho, n)
     rows, cols = [], []
-    for dx, dy in ((1, 0), (0, 1)):
-        nbr = _neighbour(ix, iy, lookup, dims, dx, dy)
+    for axis in range(len(idx)):
+        nbr = _neighbour(idx, lookup, shape, axis, 1)
         present = np.flatnonzero(nbr >= 0)
         rows.append(present)
         cols.append(nbr[present])
@@ -282,16 +329,16 @@ def assemble_operator(rho, ix, iy):
     return A
 
 
-def buoyancy_rhs(rho, ix, iy):
-    """Right-hand side ``-d(rho)/dy`` projected to mean zero.
+def buoyancy_rhs(rho, *idx):
+    """Right-hand side ``-d(rho)/dy`` (``-d(rho)/dz`` in 3-D: the last axis is up) projected to mean zero.
 
     Central differences in grid-index units, one-sided where a vertical
     neighbour is absent, zero where both are.
     """
-    ix, iy, lookup, dims = _cell_lookup(ix, iy)
-    rho = _check_density(rho, ix.size)
-    up = _neighbour(ix, iy, lookup, dims, 0, 1)
-    down = _neighbour(ix, iy, lookup, dims, 0, -1)
+    idx, lookup, shape = _cell_lookup(*idx)
+    rho = _check_density(rho, idx[0].size)
+    up = _neighbour(idx, lookup, shape, len(idx) - 1, 1)
+    down = _neighbour(idx, lookup, shape, len(idx) - 1, -1)
     upper = np.where(up >= 0, rho[up], rho)
     lower = np.where(down >= 0, rho[down], rho)
     steps = (up >= 0).astype(np.float64) + (down >= 0)
@@ -318,12 +365,12 @@ class Frame:
         Mean-zero right-hand side.
     rho : numpy.ndarray
         Cell densities.
-    coords : numpy.ndarray, shape (N, 2)
+    coords : numpy.ndarray, shape (N, 2) or (N, 3)
         Normalised cell centres.
     grid_shape : tuple
-        ``(W, H)``.
+        ``(W, H)`` or ``(W, H, D)``.
     perm : numpy.ndarray of int64
-        Row-major cell index ``iy * W + ix`` of each row.
+        Row-major cell index ``iy * W + ix`` (3-D: ``(iz * H + iy) * W + ix``) of each row.
     params : dict
         Generator inputs and sampled scene parameters.
     """
@@ -341,26 +388,30 @@ class Frame:
         """Number of unknowns."""
         return self.A.shape[0]
 
+    @property
+    def dim(self):
+        """2 or 3."""
+        return len(self.grid_shape)
+
     def to_image(self, values):
-        """Map Morton-ordered ``values`` to an ``(H, W)`` image, NaN where absent."""
+        """Map Morton-ordered ``values`` to an ``(H, W)`` image (3-D: a ``(D, H, W)`` volume), NaN where absent."""
         values = np.asarray(values, dtype=np.float64)
         if values.shape != (self.n,):
             raise ValueError(f"values must have shape ({self.n},), got {values.shape}")
-        w, h = self.grid_shape
-        image = np.full(w * h, np.nan)
+        image = np.full(math.prod(self.grid_shape), np.nan)
         image[self.perm] = values
-        return image.reshape(h, w)
+        return image.reshape(self.grid_shape[::-1])
 
 
-def _make_rhs(kind, rng, rho, ix, iy):
+def _make_rhs(kind, rng, rho, idx):
     """Right-hand side of the requested kind."""
     if kind == "random":
         return _mean_zero(rng.standard_normal(rho.size))
-    return buoyancy_rhs(rho, ix, iy)
+    return buoyancy_rhs(rho, *idx)
 
 
 def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
-               gap_width=0.25):
+               gap_width=0.25, dim=2):
     """Generate one multiphase Poisson problem.
 
     Parameters
@@ -377,7 +428,9 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
     rhs : {'random', 'buoyancy'}
         Right-hand-side kind.
     gap_width : float
-        Barrier gap width in ``[0, 1]``.
+        Barrier gap width in ``[0, 1]`` (3-D: the open fraction of a slab).
+    dim : int
+        2 (the paper's scenes) or 3 (near-cubic boxes, 7-point operator, slabs).
 
     Returns
     -------
@@ -385,15 +438,16 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
     """
     n = _check_positive_int(n, "n")
     seed = _check_seed(seed)
+    dim = _check_dim(dim)
     if rhs not in RHS_KINDS:
         raise ValueError(f"unknown rhs {rhs!r}; expected one of {', '.join(RHS_KINDS)}")
     if not 0.0 <= gap_width <= 1.0:
         raise ValueError(f"gap_width must lie in [0, 1], got {gap_width!r}")
     rng = np.random.default_rng(np.random.SeedSequence(seed))
-    scene = sample_params(rng, distribution, contrast)
-    w, h = grid_dims(n)
-    ix, iy = morton_cells(n)
-    coords = np.column_stack(((ix + 0.5) / w, (iy + 0.5) / h))
+    scene = sample_params(rng, distribution, contrast, dim)
+    shape = grid_dims(n, dim)
+    idx = morton_cells(n, dim)
+    coords = np.column_stack([(i + 0.5) / s for i, s in zip(idx, shape)])
     rho = barrier_density(coords, scene["rho_heavy"], scene["barriers"], gap_width)
     rho *= 1.0 + rng.normal(0.0, DENSITY_NOISE, n)
     params = {
@@ -402,13 +456,15 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
         "rho_heavy": scene["rho_heavy"], "gap_width": float(gap_width),
         "rhs": rhs, "barriers": scene["barriers"],
     }
+    if dim == 3:
+        params["dim"] = 3
     return Frame(
-        A=assemble_operator(rho, ix, iy),
-        b=_make_rhs(rhs, rng, rho, ix, iy),
+        A=assemble_operator(rho, *idx),
+        b=_make_rhs(rhs, rng, rho, idx),
         rho=rho,
         coords=coords,
-        grid_shape=(w, h),
-        perm=iy * w + ix,
+        grid_shape=shape,
+        perm=row_major(idx, shape),
         params=params,
     )
 
@@ -418,14 +474,13 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
 def frame_summary(frame):
     """A few human-readable lines describing a frame."""
     p = frame.params
-    w, h = frame.grid_shape
     diag = frame.A.diagonal()
     barriers = "; ".join(
         f"{b['orientation']} c={b['center']:.3f} t={b['thickness']:.3f} gap={b['gap']}"
         for b in p["barriers"]
     )
     return "\n".join([
-        f"N={frame.n} grid={w}x{h} distribution={p['distribution']} "
+        f"N={frame.n} grid={'x'.join(map(str, frame.grid_shape))} distribution={p['distribution']} "
         f"seed={p['seed']} rhs={p['rhs']}",
         f"rho_heavy={p['rho_heavy']:.4g} rho range=[{frame.rho.min():.4g}, "
         f"{frame.rho.max():.4g}]",

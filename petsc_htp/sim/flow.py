@@ -1,20 +1,23 @@
-"""Two-phase incompressible flow on a MAC grid: a heavy blob falls past a ledge into a pool.
+"""Two-phase incompressible flow on a MAC grid, in 2-D or 3-D: a heavy blob falls past a ledge into a pool.
 
 The physics behind ``examples/multiphase_flow.py`` (numpy and scipy only). Each frame:
 :meth:`Flow.advance` (semi-Lagrangian advection of velocity and level set, then
 gravity), :meth:`Flow.system` (the pressure-Poisson system), a solve, and
 :meth:`Flow.project`. The matrix is the benchmark's multiphase operator
-(:func:`petsc_htp.scenes.assemble_operator` with coefficient ``1/rho``, face weight
-``2/(rho_i + rho_j)``) over the fluid cells in Morton order: its nonzero pattern
-never changes, only its values do.
+(:func:`petsc_htp.scenes.generator.assemble_operator` with coefficient ``1/rho``, face weight
+``2/(rho_i + rho_j)``; 5-point in 2-D, 7-point in 3-D) over the fluid cells in Morton order: its
+nonzero pattern never changes, only its values do.
 
 The phase is a level set ``phi`` (negative in the heavy fluid); the density is
 ``rho = 1 + (R - 1) H(-phi)`` with a smoothed Heaviside ``H`` 1.5 cells wide on
 each side. After advection ``phi`` is redistanced (a few Sussman steps) and
 shifted by one global constant (Brent's method) so that the heavy volume
-``sum H(-phi) dx^2`` keeps its initial value. The two phase masses, which split
-``sum rho dx^2``, are therefore conserved up to round-off (tested: relative
+``sum H(-phi) dx^d`` keeps its initial value. The two phase masses, which split
+``sum rho dx^d``, are therefore conserved up to round-off (tested: relative
 change below 1e-10 over a run).
+
+Arrays are indexed ``[iy, ix]`` (2-D) or ``[iz, iy, ix]`` (3-D); physical axis ``a`` (x, y, z) is array
+axis ``d - 1 - a``, and the last physical axis is up.
 """
 import math
 import numbers
@@ -38,15 +41,33 @@ def _heaviside(x, eps):
     return 0.5 * (1.0 + t + np.sin(np.pi * t) / np.pi)
 
 
-def _sample(field, x, y, ox, oy, h):
-    """Bilinear interpolation of ``field[j, i]``, stored at ``((i + ox) h, (j + oy) h)``, at points."""
-    fx = np.clip(x / h - ox, 0.0, field.shape[1] - 1)
-    fy = np.clip(y / h - oy, 0.0, field.shape[0] - 1)
-    i = np.minimum(fx.astype(np.int64), field.shape[1] - 2)
-    j = np.minimum(fy.astype(np.int64), field.shape[0] - 2)
-    tx, ty = fx - i, fy - j
-    return ((1 - ty) * ((1 - tx) * field[j, i] + tx * field[j, i + 1])
-            + ty * ((1 - tx) * field[j + 1, i] + tx * field[j + 1, i + 1]))
+def _sample(field, pts, offset, h):
+    """Multilinear interpolation of ``field``, whose entry at physical index ``(i, j[, k])`` sits at
+    ``((i + offset[0]) h, (j + offset[1]) h[, ...])``, at the points ``pts`` (x, y[, z] arrays).
+
+    Interpolates along x innermost, then y, then z."""
+    d = len(pts)
+    base, frac = [], []
+    for a in range(d):
+        size = field.shape[d - 1 - a]
+        f = np.clip(pts[a] / h - offset[a], 0.0, size - 1)
+        i = np.minimum(f.astype(np.int64), size - 2)
+        base.append(i)
+        frac.append(f - i)
+
+    def lerp(a, fixed):
+        if a < 0:
+            return field[tuple(fixed[b] for b in reversed(range(d)))]
+        lo = lerp(a - 1, {**fixed, a: base[a]})
+        hi = lerp(a - 1, {**fixed, a: base[a] + 1})
+        return (1 - frac[a]) * lo + frac[a] * hi
+
+    return lerp(d - 1, {})
+
+
+def _shifted(p, axis, step):
+    """The interior of the edge-padded ``p`` moved by ``step`` (-1 or 1) along ``axis``."""
+    return p[tuple(slice(1 + step, p.shape[ax] - 1 + step) if ax == axis else slice(1, -1) for ax in range(p.ndim))]
 
 
 def _redistance(phi, h, steps):
@@ -55,8 +76,8 @@ def _redistance(phi, h, steps):
     for _ in range(steps):
         p = np.pad(phi, 1, mode="edge")
         grad2 = 0.0
-        for back, fwd in ((phi - p[1:-1, :-2], p[1:-1, 2:] - phi),
-                          (phi - p[:-2, 1:-1], p[2:, 1:-1] - phi)):
+        for axis in reversed(range(phi.ndim)):                  # x first
+            back, fwd = phi - _shifted(p, axis, -1), _shifted(p, axis, 1) - phi
             outward = np.maximum(np.maximum(back, 0) ** 2, np.minimum(fwd, 0) ** 2)
             inward = np.maximum(np.minimum(back, 0) ** 2, np.maximum(fwd, 0) ** 2)
             grad2 = grad2 + np.where(sign > 0, outward, inward)
@@ -64,26 +85,49 @@ def _redistance(phi, h, steps):
     return phi
 
 
-def scene(nx, ny, seed=0):
+def scene(nx, ny, seed=0, nz=None):
     """Solid mask and initial level set of the splash scene.
 
     A pool fills the bottom quarter, a ledge floats at mid height on the left,
     and a round blob (centre and radius jittered by ``seed``) hangs above the
-    ledge's right end. The box is 1 wide and ``ny/nx`` high.
+    ledge's right end. The box is 1 wide and ``ny/nx`` high; with ``nz`` it is
+    3-D (``ny/nx`` deep, ``nz/nx`` high), the ledge a plate half the depth wide
+    and the blob a sphere.
 
     Returns
     -------
-    solid : numpy.ndarray of bool, shape (ny, nx)
-    phi : numpy.ndarray, shape (ny, nx)
+    solid : numpy.ndarray of bool, shape (ny, nx) or (nz, ny, nx)
+    phi : numpy.ndarray, same shape
         Signed distance, negative in the heavy fluid.
     """
     rng = np.random.default_rng(seed)
-    top = ny / nx
-    x, y = np.meshgrid((np.arange(nx) + 0.5) / nx, (np.arange(ny) + 0.5) / nx)
-    solid = (np.abs(x - 0.32) < 0.17) & (np.abs(y - 0.45 * top) < max(0.035, 0.6 / nx))
-    cx, radius = 0.5 + rng.uniform(-0.05, 0.05), 0.12 * rng.uniform(0.9, 1.1)
-    phi = np.minimum(y - 0.25 * top, np.hypot(x - cx, y - 0.75 * top) - radius)
-    return solid, phi
+    if nz is None:
+        top = ny / nx
+        x, y = np.meshgrid((np.arange(nx) + 0.5) / nx, (np.arange(ny) + 0.5) / nx)
+        solid = (np.abs(x - 0.32) < 0.17) & (np.abs(y - 0.45 * top) < max(0.035, 0.6 / nx))
+        cx, radius = 0.5 + rng.uniform(-0.05, 0.05), 0.12 * rng.uniform(0.9, 1.1)
+        phi = np.minimum(y - 0.25 * top, np.hypot(x - cx, y - 0.75 * top) - radius)
+        return solid, phi
+    top, depth = nz / nx, ny / nx
+    z, y, x = np.meshgrid((np.arange(nz) + 0.5) / nx, (np.arange(ny) + 0.5) / nx, (np.arange(nx) + 0.5) / nx,
+                          indexing="ij")
+    solid = ((np.abs(x - 0.32) < 0.17) & (np.abs(y - 0.5 * depth) < 0.25 * depth)
+             & (np.abs(z - 0.45 * top) < max(0.035, 0.6 / nx)))
+    cx, radius = 0.5 + rng.uniform(-0.05, 0.05), 0.15 * rng.uniform(0.9, 1.1)
+    blob = np.sqrt((x - cx) ** 2 + (y - 0.5 * depth) ** 2 + (z - 0.75 * top) ** 2) - radius
+    return solid, np.minimum(z - 0.25 * top, blob)
+
+
+def _interior(shape, axis):
+    """Index of the faces strictly inside a face array of ``shape`` along ``axis``."""
+    return tuple(slice(1, -1) if ax == axis else slice(None) for ax in range(len(shape)))
+
+
+def _pair(fluid, axis):
+    """Whether both cells of each interior face along ``axis`` are fluid."""
+    lo = tuple(slice(None, -1) if ax == axis else slice(None) for ax in range(fluid.ndim))
+    hi = tuple(slice(1, None) if ax == axis else slice(None) for ax in range(fluid.ndim))
+    return fluid[lo] & fluid[hi]
 
 
 class Flow:
@@ -92,23 +136,25 @@ class Flow:
     Parameters
     ----------
     nx, ny : int
-        Cells across and up (at least 8 each); the cell size is ``1/nx``.
+        Cells across and up (2-D) or deep (3-D), at least 8 each; the cell size is ``1/nx``.
     density_ratio : float
         Heavy over light density (light is 1), at least 1.
     seed : int
         Jitters the blob (see :func:`scene`).
-    solid : numpy.ndarray of bool, shape (ny, nx), optional
+    solid : numpy.ndarray of bool, shape (ny, nx) or (nz, ny, nx), optional
         Replaces the scene's obstacle; walls splitting the box make several fluid regions.
     dt : float
         Frame time step.
     cfl : float
         Advection substeps per frame: ``ceil(max|u| dt / (cfl dx))``.
+    nz : int, optional
+        Cells up in 3-D (at least 8); None for 2-D.
 
     Attributes
     ----------
-    ix, iy : numpy.ndarray of int64, shape (N,)
-        Grid indices of the unknowns (fluid cells) in Morton order.
-    coords : numpy.ndarray, shape (N, 2)
+    idx : tuple of numpy.ndarray of int64, shape (N,)
+        Grid indices (ix, iy[, iz]) of the unknowns (fluid cells) in Morton order; also ``ix``, ``iy``.
+    coords : numpy.ndarray, shape (N, d)
         Cell centres normalised to ``[0, 1]`` per axis, in Morton order.
     regions : numpy.ndarray of int64, shape (N,)
         Connected fluid region (0 .. n_regions-1) of each unknown.
@@ -116,34 +162,40 @@ class Flow:
         Advection substeps of the last :meth:`advance`.
     """
 
-    def __init__(self, nx, ny, density_ratio=1000.0, seed=0, solid=None, dt=FRAME_DT, cfl=1.0):
-        for name, value in (("nx", nx), ("ny", ny)):
+    def __init__(self, nx, ny, density_ratio=1000.0, seed=0, solid=None, dt=FRAME_DT, cfl=1.0, nz=None):
+        for name, value in (("nx", nx), ("ny", ny)) + ((("nz", nz),) if nz is not None else ()):
             if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < MIN_CELLS:
                 raise ValueError(f"{name} must be an integer >= {MIN_CELLS}, got {value!r}")
         if not (math.isfinite(density_ratio) and density_ratio >= 1.0):
             raise ValueError(f"density_ratio must be finite and >= 1, got {density_ratio!r}")
         if not (math.isfinite(dt) and dt > 0 and math.isfinite(cfl) and cfl > 0):
             raise ValueError(f"dt and cfl must be positive, got dt={dt!r}, cfl={cfl!r}")
-        self.nx, self.ny, self.ratio, self.dt, self.cfl = int(nx), int(ny), float(density_ratio), dt, cfl
+        self.shape = (int(nx), int(ny)) + (() if nz is None else (int(nz),))
+        self.dim = len(self.shape)
+        self.ratio, self.dt, self.cfl = float(density_ratio), dt, cfl
         self.h = 1.0 / nx
         self.eps = SMOOTHING * self.h
-        scene_solid, phi = scene(self.nx, self.ny, seed)
+        cells = self.shape[::-1]
+        scene_solid, phi = scene(int(nx), int(ny), seed, nz)
         solid = scene_solid if solid is None else np.asarray(solid, dtype=bool)
-        if solid.shape != (ny, nx) or solid.all():
-            raise ValueError(f"solid must be a ({ny}, {nx}) mask with at least one fluid cell")
+        if solid.shape != cells or solid.all():
+            raise ValueError(f"solid must be a {cells} mask with at least one fluid cell")
         self.fluid = ~solid
-        iy, ix = np.nonzero(self.fluid)
-        order = np.argsort(morton_code(ix, iy), kind="stable")
-        self.ix, self.iy = ix[order], iy[order]
-        self.coords = np.column_stack(((self.ix + 0.5) / nx, (self.iy + 0.5) / ny))
+        idx = np.nonzero(self.fluid)[::-1]                         # (ix, iy[, iz])
+        order = np.argsort(morton_code(*idx), kind="stable")
+        self.idx = tuple(i[order] for i in idx)
+        self.at = self.idx[::-1]                                   # array index of the unknowns
+        self.coords = np.column_stack([(i + 0.5) / s for i, s in zip(self.idx, self.shape)])
         labels, self.n_regions = ndimage.label(self.fluid)
-        self.regions = labels[self.iy, self.ix] - 1
-        self.u_open = np.zeros((ny, nx + 1), dtype=bool)
-        self.u_open[:, 1:-1] = self.fluid[:, :-1] & self.fluid[:, 1:]
-        self.v_open = np.zeros((ny + 1, nx), dtype=bool)
-        self.v_open[1:-1] = self.fluid[:-1] & self.fluid[1:]
-        self.u = np.zeros((ny, nx + 1))
-        self.v = np.zeros((ny + 1, nx))
+        self.regions = labels[self.at] - 1
+        self.open, self.vel = [], []
+        for a in range(self.dim):
+            axis = self.dim - 1 - a
+            faces = tuple(c + (ax == axis) for ax, c in enumerate(cells))
+            opened = np.zeros(faces, dtype=bool)
+            opened[_interior(faces, axis)] = _pair(self.fluid, axis)
+            self.open.append(opened)
+            self.vel.append(np.zeros(faces))
         self._nearest = tuple(ndimage.distance_transform_edt(solid, return_indices=True)[1])
         self.phi = phi[self._nearest]
         self.heavy_volume = self._heavy_volume(self.phi[self.fluid])
@@ -152,7 +204,17 @@ class Flow:
     @property
     def n(self):
         """Number of unknowns (fluid cells)."""
-        return self.ix.size
+        return self.idx[0].size
+
+    @property
+    def ix(self):
+        """x grid index of the unknowns."""
+        return self.idx[0]
+
+    @property
+    def iy(self):
+        """y grid index of the unknowns."""
+        return self.idx[1]
 
     # ------------------------------------------------------------- phase
 
@@ -168,66 +230,73 @@ class Flow:
                                 lo, hi, xtol=1e-15 * self.h)
         return phi + shift
 
-    def _theta(self):
-        """Heavy fraction ``H(-phi)`` of every cell, shape (ny, nx)."""
+    def theta(self):
+        """Heavy fraction ``H(-phi)`` of every cell (array shape)."""
         return _heaviside(-self.phi, self.eps)
 
     def density(self):
         """Cell densities of the unknowns, Morton order."""
-        return 1.0 + (self.ratio - 1.0) * self._theta()[self.iy, self.ix]
+        return 1.0 + (self.ratio - 1.0) * self.theta()[self.at]
 
     def phase_mass(self):
-        """(heavy, light) mass: ``sum rho dx^2`` split by phase."""
-        theta = self._theta()[self.fluid]
-        area = self.h ** 2
-        return self.ratio * theta.sum() * area, (1.0 - theta).sum() * area
+        """(heavy, light) mass: ``sum rho dx^d`` split by phase."""
+        theta = self.theta()[self.fluid]
+        volume = self.h ** self.dim
+        return self.ratio * theta.sum() * volume, (1.0 - theta).sum() * volume
 
     # ---------------------------------------------------------- advection
 
-    def _velocity(self, x, y):
-        """Velocity ``(u, v)`` interpolated at points."""
-        return _sample(self.u, x, y, 0.0, 0.5, self.h), _sample(self.v, x, y, 0.5, 0.0, self.h)
+    def _offset(self, a):
+        """Where component ``a`` of the velocity sits in its cell: 0 along ``a``, 1/2 across."""
+        return [0.0 if b == a else 0.5 for b in range(self.dim)]
 
-    def _departure(self, x, y, substeps):
+    def _velocity(self, pts):
+        """Velocity components interpolated at points."""
+        return [_sample(self.vel[a], pts, self._offset(a), self.h) for a in range(self.dim)]
+
+    def _departure(self, pts, substeps):
         """Departure points of a backward trace over ``dt`` in ``substeps`` RK2 steps."""
         step = self.dt / substeps
-        width, height = self.nx * self.h, self.ny * self.h
+        size = [s * self.h for s in self.shape]
         for _ in range(substeps):
-            u, v = self._velocity(x, y)
-            u, v = self._velocity(x - 0.5 * step * u, y - 0.5 * step * v)
-            x = np.clip(x - step * u, 0.0, width)
-            y = np.clip(y - step * v, 0.0, height)
-        return x, y
+            vel = self._velocity(pts)
+            vel = self._velocity([p - 0.5 * step * v for p, v in zip(pts, vel)])
+            pts = [np.clip(p - step * v, 0.0, s) for p, v, s in zip(pts, vel, size)]
+        return pts
 
     def advance(self):
-        """Advect velocity and level set by one frame, then add gravity.
+        """Advect velocity and level set by one frame, then add gravity (along the last axis).
 
         The trace through the current (divergence-free) velocity takes
         ``substeps`` RK2 steps so that each moves at most ``cfl`` cells; every
         field is interpolated once, at the departure points.
         """
-        speed = max(np.abs(self.u).max(), np.abs(self.v).max())
+        speed = max(np.abs(v).max() for v in self.vel)
         self.substeps = max(1, math.ceil(speed * self.dt / (self.cfl * self.h)))
-        uj, ui = np.nonzero(self.u_open)
-        vj, vi = np.nonzero(self.v_open)
-        cj, ci = np.nonzero(self.fluid)
-        h = self.h
-        u_from = self._departure(ui * h, (uj + 0.5) * h, self.substeps)
-        v_from = self._departure((vi + 0.5) * h, vj * h, self.substeps)
-        c_from = self._departure((ci + 0.5) * h, (cj + 0.5) * h, self.substeps)
-        u, v, phi = self.u.copy(), self.v.copy(), self.phi.copy()
-        u[uj, ui] = _sample(self.u, *u_from, 0.0, 0.5, h)
-        v[vj, vi] = _sample(self.v, *v_from, 0.5, 0.0, h) - GRAVITY * self.dt
-        phi[cj, ci] = _sample(self.phi, *c_from, 0.5, 0.5, h)
+        h, d = self.h, self.dim
+        moved = []
+        for a in range(d):
+            at = np.nonzero(self.open[a])
+            pts = [(at[d - 1 - b] + (0.0 if b == a else 0.5)) * h for b in range(d)]
+            moved.append((at, self._departure(pts, self.substeps)))
+        cells = np.nonzero(self.fluid)
+        c_from = self._departure([(cells[d - 1 - b] + 0.5) * h for b in range(d)], self.substeps)
+        vel, phi = [v.copy() for v in self.vel], self.phi.copy()
+        for a, (at, pts) in enumerate(moved):
+            vel[a][at] = _sample(self.vel[a], pts, self._offset(a), h) - (GRAVITY * self.dt if a == d - 1 else 0.0)
+        phi[cells] = _sample(self.phi, c_from, [0.5] * d, h)
         phi = _redistance(phi[self._nearest], h, REDISTANCE_STEPS)
-        self.u, self.v = u, v
+        self.vel = vel
         self.phi = self._conserve_volume(phi[self._nearest])
 
     # --------------------------------------------------------- projection
 
     def _divergence(self):
-        """Cell divergence of the face velocity, shape (ny, nx)."""
-        return (np.diff(self.u, axis=1) + np.diff(self.v, axis=0)) / self.h
+        """Cell divergence of the face velocity (array shape)."""
+        div = np.diff(self.vel[0], axis=self.dim - 1)
+        for a in range(1, self.dim):
+            div = div + np.diff(self.vel[a], axis=self.dim - 1 - a)
+        return div / self.h
 
     def max_divergence(self):
         """max |div u| over the fluid cells."""
@@ -245,12 +314,12 @@ class Flow:
         A : scipy.sparse.csr_matrix
             Symmetric positive semidefinite, same pattern every frame.
         b : numpy.ndarray, shape (N,)
-        coords : numpy.ndarray, shape (N, 2)
+        coords : numpy.ndarray, shape (N, d)
         density : numpy.ndarray, shape (N,)
         """
         rho = self.density()
-        A = assemble_operator(1.0 / rho, self.ix, self.iy)
-        b = -(self.h ** 2 / self.dt) * self._divergence()[self.iy, self.ix]
+        A = assemble_operator(1.0 / rho, *self.idx)
+        b = -(self.h ** 2 / self.dt) * self._divergence()[self.at]
         b -= (np.bincount(self.regions, b) / np.bincount(self.regions))[self.regions]
         return A, b, self.coords, rho
 
@@ -267,29 +336,32 @@ class Flow:
         float
             max |div u| after the projection.
         """
-        pressure, rho = self.pressure_image(p), 1.0 + (self.ratio - 1.0) * self._theta()
+        pressure, rho = self.pressure_image(p), 1.0 + (self.ratio - 1.0) * self.theta()
         scale = self.dt / self.h
-        du = scale * 2.0 / (rho[:, :-1] + rho[:, 1:]) * np.diff(pressure, axis=1)
-        dv = scale * 2.0 / (rho[:-1] + rho[1:]) * np.diff(pressure, axis=0)
-        self.u[:, 1:-1] -= np.where(self.u_open[:, 1:-1], du, 0.0)
-        self.v[1:-1] -= np.where(self.v_open[1:-1], dv, 0.0)
+        for a in range(self.dim):
+            axis = self.dim - 1 - a
+            lo = tuple(slice(None, -1) if ax == axis else slice(None) for ax in range(self.dim))
+            hi = tuple(slice(1, None) if ax == axis else slice(None) for ax in range(self.dim))
+            inner = _interior(self.vel[a].shape, axis)
+            grad = scale * 2.0 / (rho[lo] + rho[hi]) * np.diff(pressure, axis=axis)
+            self.vel[a][inner] -= np.where(self.open[a][inner], grad, 0.0)
         return self.max_divergence()
 
     # ------------------------------------------------------------- images
 
     def _image(self, values):
-        """(ny, nx) image of Morton-ordered values, NaN in solid cells."""
+        """Array-shaped image of Morton-ordered values, NaN in solid cells."""
         values = np.asarray(values, dtype=np.float64)
         if values.shape != (self.n,):
             raise ValueError(f"values must have shape ({self.n},), got {values.shape}")
-        image = np.full((self.ny, self.nx), np.nan)
-        image[self.iy, self.ix] = values
+        image = np.full(self.fluid.shape, np.nan)
+        image[self.at] = values
         return image
 
     def density_image(self):
-        """(ny, nx) density, NaN in solid cells (row 0 at the bottom)."""
+        """Density, NaN in solid cells (row 0 at the bottom); a (nz, ny, nx) volume in 3-D."""
         return self._image(self.density())
 
     def pressure_image(self, p):
-        """(ny, nx) image of a Morton-ordered pressure, NaN in solid cells."""
+        """Image of a Morton-ordered pressure, NaN in solid cells."""
         return self._image(p)

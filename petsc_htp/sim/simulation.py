@@ -17,20 +17,19 @@ from petsc4py import PETSc
 
 from ..atomic import atomic_open
 from .flow import Flow
-from .plot import plot_runs, write_gif
+from .plot import frame_images, plot_runs, write_gif
 from ..methods import bjacobi_blocks, reason_name
-from ..petscmat import attach, region_nullspace
+from ..petscmat import attach, gathered, local_csr, preallocated_aij, region_nullspace
 
 
 def create_matrix(A, regions):
-    """Preallocated AIJ with ``A``'s pattern (no values yet), symmetric, one constant null vector per region."""
-    mat = PETSc.Mat().createAIJ(size=A.shape, nnz=np.diff(A.indptr).astype(PETSc.IntType),
-                                comm=PETSc.COMM_WORLD)
-    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+    """Distributed AIJ preallocated for ``A``'s pattern (no values yet), symmetric, one constant null vector per
+    region; returns ``(mat, start, end)``, this rank's rows ``start:end``."""
+    mat, start, end = preallocated_aij(A)
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     mat.setOption(PETSc.Mat.Option.SYMMETRY_ETERNAL, True)
     mat.setNullSpace(region_nullspace(mat, regions))
-    return mat
+    return mat, start, end
 
 
 def pc_setups():
@@ -59,8 +58,9 @@ class PressureSolver:
     """
 
     def __init__(self, A, regions, prefix="", warm=True):
-        self.mat = create_matrix(A, regions)
-        self.indptr, self.indices = A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType)
+        self.mat, self.start, self.end = create_matrix(A, regions)
+        self.indptr, self.indices, _ = local_csr(A, self.start, self.end)
+        self.entries = slice(A.indptr[self.start], A.indptr[self.end])
         self.ksp = PETSc.KSP().create(comm=self.mat.getComm())
         self.ksp.setOptionsPrefix(prefix)
         self.ksp.setOperators(self.mat, self.mat)
@@ -97,10 +97,10 @@ class PressureSolver:
         t0 = time.perf_counter()
         if not self.warm:
             self.x.set(0.0)
-        self.mat.setValuesCSR(self.indptr, self.indices, A.data)
+        self.mat.setValuesCSR(self.indptr, self.indices, A.data[self.entries])
         self.mat.assemble()
         attach(self.mat, coords=coords, density=coefficient)
-        self.b.setArray(rhs)
+        self.b.setArray(rhs[self.start:self.end])
         pc = self.ksp.getPC()
         setups, numeric = pc_setups(), numeric_count(pc)
         update_ms = 1e3 * (time.perf_counter() - t0)
@@ -134,8 +134,8 @@ class PressureSolver:
                 "setup_ms": 1e3 * (t2 - t1), "solve_ms": 1e3 * (t3 - t2)}
 
     def pressure(self):
-        """The current solution as a numpy array."""
-        return self.x.getArray()
+        """The current solution as a numpy array (the whole of it on every rank)."""
+        return gathered(self.x)
 
     def destroy(self):
         """Free the PETSc objects."""
@@ -180,12 +180,13 @@ class ReusePolicy:
 def simulate(cfg, label, prefix="", verbose=True):
     """Run the scene with the method under ``prefix``; returns (records, failed).
 
-    ``cfg`` holds nx, ny, frames, density_ratio, seed, reuse_every, reuse_growth, out, animate.
+    ``cfg`` holds nx, ny, frames, density_ratio, seed, reuse_every, reuse_growth, out, animate, and nz for a
+    3-D flow (absent or None: 2-D).
     Writes ``out/LABEL.jsonl`` (atomically) and ``out/LABEL.png``, with ``animate`` also a GIF.
     """
     if cfg["frames"] < 1:
         raise ValueError(f"frames must be at least 1, got {cfg['frames']}")
-    sim = Flow(cfg["nx"], cfg["ny"], density_ratio=cfg["density_ratio"], seed=cfg["seed"])
+    sim = Flow(cfg["nx"], cfg["ny"], density_ratio=cfg["density_ratio"], seed=cfg["seed"], nz=cfg.get("nz"))
     policy = ReusePolicy(cfg["reuse_every"], cfg["reuse_growth"])
     solver, records, images = None, [], []
     try:
@@ -221,7 +222,7 @@ def simulate(cfg, label, prefix="", verbose=True):
                 break
             policy.record(rec["rebuilt"], rec["its"] - rec["reused_its"])
             if cfg["animate"]:
-                images.append((sim.density_image(), sim.pressure_image(solver.pressure())))
+                images.append(frame_images(sim, solver.pressure()))
     finally:
         if solver is not None:
             solver.destroy()

@@ -15,6 +15,7 @@ import numpy as np
 from petsc4py import PETSc
 
 LEAF_DEFAULTS = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
+EXACT = ("cholesky", "lu")        # leaf PC types that solve D exactly
 
 
 def seqaij(indptr, indices, values, n, m=None) -> PETSc.Mat:
@@ -67,11 +68,10 @@ class ExactLeaves:
         The leaves are A's own rows in order on one rank: B applies to the KSP's vectors as they are.
     """
 
-    exact = True
-
     def __init__(self, lay, values, make_pc, direct):
         self.lay, self.direct = lay, direct
         self.f = _Factored(lay.d_indptr, lay.d_indices, values, lay.perm, make_pc)
+        self.exact = self.f.pc.getType() in EXACT      # an incomplete factor (-htp_leaf_pc_type icc): D B != I
 
     @property
     def pc(self) -> PETSc.PC:

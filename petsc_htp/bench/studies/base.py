@@ -50,6 +50,8 @@ class Size:
 
 
 SCALES = Size("scales", [1024, 2048, 4096, 8192, 16384], [256, 512], "N of table/curves/fastpath")
+DIM = Size("dim", 2, 2, "scene dimension of table, sequence, curves, stability and defaults: 2, or 3 for near-cubic "
+                        "boxes with the 7-point operator (N = side^3, e.g. --scales 32768 262144)")
 FRAMES = Size("frames", 20, 2, "held-out frames per N")
 TRAINING = (
     Size("train_minutes", 15.0, 0.5, "wall-clock limit per study model", flag="--train-budget-minutes"),

@@ -9,7 +9,7 @@ from ..aggregate import TOLERANCES, first_failure, group, time_to
 from ..cases import Problem, held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, tol
 from ..plotting import colors, figure, fps_lines, n_axis, save
-from .base import SCALES, Study, solve_all
+from .base import DIM, SCALES, Study, solve_all
 
 SUMMARY_CHART = "curves_summary.png"
 
@@ -19,9 +19,9 @@ def chart_name(n) -> str:
     return f"curves_n{n}.png"
 
 
-def run(methods, scales, extra, tick) -> list:
+def run(methods, scales, extra, tick, dim=2) -> list:
     """Every method on the representative frame (the first held-out test frame) of every N, monitored."""
-    problems = [Problem(held_out_frames(n, 1)[0], case="curve") for n in scales]
+    problems = [Problem(held_out_frames(n, 1, dim=dim)[0], case="curve") for n in scales]
     return solve_all(methods, problems, extra, tick, "curves", monitor=True)
 
 
@@ -70,14 +70,14 @@ class Curves(Study):
     name = "curves"
     help = "residual against wall-clock per method (KSP monitor), time to 1e-3/1e-6/1e-8"
     default = True
-    sizes = (SCALES,)
+    sizes = (SCALES, DIM)
     readme_links = ((SUMMARY_CHART, "speed against accuracy"),)
 
     def expected_solves(self, ctx):
         return len(ctx.methods) * len(ctx.settings["scales"])
 
     def measure(self, ctx, tick):
-        return run(ctx.methods, ctx.settings["scales"], ctx.extra, tick)
+        return run(ctx.methods, ctx.settings["scales"], ctx.extra, tick, ctx.settings["dim"])
 
     def section(self, res):
         parts = ["## 2. Speed against accuracy",

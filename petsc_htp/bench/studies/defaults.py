@@ -1,10 +1,11 @@
 """Defaults by time: the two-level variant over leaf size, coarse rank, overlap and form, in sequence mode.
 
 Every configuration is ``cg_twolevel_eig`` (or ``cg_twolevel_const``) with ``-htp_leaf L -htp_coarse_rank r
--htp_overlap k -htp_form f -htp_coarse_tol 0`` and solves the sequence study's frames (:mod:`.sequence`,
-methods interleaved frame by frame). Configurations are ranked by the geometric mean over N of their
-median ms per frame relative to the fastest configuration at that N; the default is the first whose
-every frame (the first included) took at most :data:`ITERATION_BAR` CG iterations.
+-htp_overlap k -htp_form f -htp_coarse_tol 0`` and a leaf factorisation (``-htp_leaf_pc_type``: cholesky,
+exact, or icc) and solves the sequence study's frames (:mod:`.sequence`, methods interleaved frame by
+frame). Configurations are ranked by the geometric mean over N of their median ms per frame relative to the
+fastest configuration at that N; the default is the first whose every frame (the first included) took at
+most :data:`ITERATION_BAR` CG iterations (35 in 2-D, 40 in 3-D).
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import numpy as np
 from ..aggregate import cells, pareto_front
 from ..markdown import image, its, md_table, ms, n_label, ratio
 from ..plotting import figure, save
-from .base import Size, Study
+from .base import DIM, Size, Study
 
 CHART = "defaults.png"
 SCALES = Size("defaults_scales", [16384, 65536], [256, 1024], "N of the defaults sweep")
@@ -23,29 +24,34 @@ FRAMES = Size("defaults_frames", 5, 2, "frames per N of the defaults sweep")
 LEAVES = Size("defaults_leaves", [16, 32, 64, 128, 256, 512], [32, 64], "leaf sizes L of the defaults sweep")
 RANKS = Size("defaults_ranks", [2, 3, 4, 6, 8], [2, 4], "coarse ranks r of the defaults sweep")
 OVERLAPS = Size("defaults_overlaps", [0, 1], [0, 1], "leaf overlaps of the defaults sweep")
+LEAF_PCS = Size("defaults_leaf_pcs", ["cholesky"], ["cholesky"],
+                "leaf factorisations of the defaults sweep: cholesky (exact) and/or icc", kind=str)
 FORMS = ("deflated", "balanced")
-ITERATION_BAR = 35     # the most CG iterations a default may take on any frame
+ITERATION_BAR = {2: 35, 3: 40}     # the most CG iterations a default may take on any frame, by dimension
 
 
-def configurations(leaves, ranks, overlaps) -> list:
-    """Every (name, coarse, L, r, overlap, form) of the sweep: eig at every r, const once per L."""
+def configurations(leaves, ranks, overlaps, leaf_pcs=("cholesky",)) -> list:
+    """Every (name, coarse, L, r, overlap, form, leaf PC) of the sweep: eig at every r, const once per L."""
     out = []
-    for L in leaves:
-        for ov in overlaps:
-            for form in FORMS:
-                out += [(f"eig L{L} r{r} ov{ov} {form}", "eig", L, r, ov, form) for r in ranks]
-                out.append((f"const L{L} ov{ov} {form}", "const", L, 1, ov, form))
+    for pc in leaf_pcs:
+        tail = "" if pc == "cholesky" else f" {pc}"
+        for L in leaves:
+            for ov in overlaps:
+                for form in FORMS:
+                    out += [(f"eig L{L} r{r} ov{ov} {form}{tail}", "eig", L, r, ov, form, pc) for r in ranks]
+                    out.append((f"const L{L} ov{ov} {form}{tail}", "const", L, 1, ov, form, pc))
     return out
 
 
-def sweep_methods(leaves, ranks, overlaps) -> list:
+def sweep_methods(leaves, ranks, overlaps, leaf_pcs=("cholesky",)) -> list:
     """The sweep's configurations as benchmark methods."""
     from ..methods import Method, resolve_method
 
     base = {"eig": resolve_method("cg_twolevel_eig"), "const": resolve_method("cg_twolevel_const")}
     out = []
-    for name, coarse, L, r, ov, form in configurations(leaves, ranks, overlaps):
-        extra = (("htp_leaf", str(L)), ("htp_overlap", str(ov)), ("htp_form", form), ("htp_coarse_tol", "0"))
+    for name, coarse, L, r, ov, form, pc in configurations(leaves, ranks, overlaps, leaf_pcs):
+        extra = (("htp_leaf", str(L)), ("htp_overlap", str(ov)), ("htp_form", form), ("htp_coarse_tol", "0"),
+                 ("htp_leaf_pc_type", pc))
         extra += (("htp_coarse_rank", str(r)),) if coarse == "eig" else ()
         out.append(Method(name.replace(" ", "_"), base[coarse].path, extra))
     return out
@@ -82,7 +88,8 @@ def most_iterations(res) -> dict:
 def chosen(res) -> str | None:
     """The fastest configuration (geometric mean over N) within the iteration bar on every frame, or None."""
     worst = most_iterations(res)
-    return next((m for m in table(res)[2] if worst.get(m, math.inf) <= ITERATION_BAR), None)
+    bar = ITERATION_BAR[res.meta.get("defaults", {}).get("dim", 2)]
+    return next((m for m in table(res)[2] if worst.get(m, math.inf) <= bar), None)
 
 
 def body(res, top=12) -> str:
@@ -140,16 +147,18 @@ class Defaults(Study):
 
     name = "defaults"
     help = "defaults by time: two-level leaf size, coarse rank, overlap and form in sequence mode; the front"
-    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS)
+    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS, LEAF_PCS, DIM)
     readme_links = ((CHART, "defaults sweep"),)
 
     def meta(self, settings):
         return {"defaults": {k: settings[s.name] for k, s in (("scales", SCALES), ("frames", FRAMES),
                                                                 ("leaves", LEAVES), ("ranks", RANKS),
-                                                                ("overlaps", OVERLAPS))}}
+                                                                ("overlaps", OVERLAPS), ("leaf_pcs", LEAF_PCS),
+                                                                ("dim", DIM))}}
 
     def _methods(self, s):
-        return sweep_methods(s["defaults_leaves"], s["defaults_ranks"], s["defaults_overlaps"])
+        return sweep_methods(s["defaults_leaves"], s["defaults_ranks"], s["defaults_overlaps"],
+                             s["defaults_leaf_pcs"])
 
     def expected_solves(self, ctx):
         s = ctx.settings
@@ -159,7 +168,7 @@ class Defaults(Study):
         from .sequence import run
 
         s = ctx.settings
-        rows = run(self._methods(s), s["defaults_scales"], s["defaults_frames"], ctx.extra, tick)
+        rows = run(self._methods(s), s["defaults_scales"], s["defaults_frames"], ctx.extra, tick, s["dim"])
         return [{**r, "study": "defaults"} for r in rows]
 
     def section(self, res):
@@ -167,15 +176,17 @@ class Defaults(Study):
         pick = chosen(res)
         return "\n\n".join([
             "## Defaults by time (two-level variant)",
-            f"`cg_twolevel_eig` at leaf sizes {meta.get('leaves')}, coarse ranks {meta.get('ranks')}, overlaps "
-            f"{meta.get('overlaps')} and both forms, and `cg_twolevel_const` at each leaf size, overlap and form "
-            f"(`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} frames per N, configurations "
+            f"{meta.get('dim', 2)}-D scenes: `cg_twolevel_eig` at leaf sizes {meta.get('leaves')}, coarse ranks "
+            f"{meta.get('ranks')}, overlaps {meta.get('overlaps')}, leaf factorisations "
+            f"{meta.get('leaf_pcs', ['cholesky'])} and both forms, and `cg_twolevel_const` at each leaf size, "
+            f"overlap, factorisation and form (`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} "
+            "frames per N, configurations "
             "interleaved frame by frame). Median ms per frame (setup + solve) after the first frame, mean "
             "iterations, the most iterations on any frame; ranked by the geometric mean over N of the time "
             "relative to the fastest configuration at that N (the fastest 12):",
             body(res),
             f"Picked: **{_label(pick) if pick else '—'}**, the fastest configuration that took at most "
-            f"{ITERATION_BAR} iterations on every frame.",
+            f"{ITERATION_BAR[meta.get('dim', 2)]} iterations on every frame.",
             "One application of the picked leaf size and rank in each form, in MatMults of A (the deflated form: "
             "one leaf solve, one coarse solve and two thin products; the balanced one: a second coarse solve "
             "and three more thin products):",

@@ -18,7 +18,7 @@ from ..aggregate import cells, group
 from ..cases import held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, ratio
 from ..plotting import time_bars
-from .base import Size, Study, tag
+from .base import DIM, Size, Study, tag
 
 CHART = "sequence.png"
 SCALES = Size("seq_scales", [16384, 65536], [256, 1024], "N of the sequence study")
@@ -35,9 +35,11 @@ def _ctx(solver):
 
 def _petsc_row(solver, frame, rtol) -> dict:
     """Solve one frame with a persistent solver; its row (with the two-level phases)."""
+    from ..runner import peak_rss_mb
     from .simulation import frame_row
 
     row = frame_row(solver.solve(frame.A, frame.b, frame.coords, frame.rho, rebuild=True), rtol)
+    row["peak_rss_mb"] = peak_rss_mb()
     ctx = _ctx(solver)
     if ctx is not None:
         row.update(phases=dict(ctx.setup.times), analysis_ms=ctx.setup.analysis_ms,
@@ -64,7 +66,7 @@ def _solvers(methods, first, extra) -> tuple:
     return loaded, solvers
 
 
-def run(methods, scales, frames, extra, tick) -> list:
+def run(methods, scales, frames, extra, tick, dim=2) -> list:
     """Every method over ``frames`` held-out frames per N, frame by frame, one persistent solver each."""
     from ..external import missing
     from ..runner import _solve, exception_row
@@ -72,7 +74,7 @@ def run(methods, scales, frames, extra, tick) -> list:
 
     rows = []
     for n in scales:
-        seq = held_out_frames(n, frames + 1)
+        seq = held_out_frames(n, frames + 1, dim=dim)
         loaded, solvers = _solvers(methods, seq[0], extra)
         try:
             for m in methods:
@@ -148,18 +150,18 @@ class Sequence(Study):
             "interpolation, HTPPC runs its numeric step), pyamg and AMGCL rebuild; ms per frame, the two-level "
             "numeric step's phases and apply parts")
     default = True
-    sizes = (SCALES, FRAMES)
+    sizes = (SCALES, FRAMES, DIM)
     readme_links = ((CHART, "sequence mode"),)
 
     def meta(self, settings):
-        return {"sequence": {"scales": settings["seq_scales"], "frames": settings["seq_frames"]}}
+        return {"sequence": {"scales": settings["seq_scales"], "frames": settings["seq_frames"], "dim": settings["dim"]}}
 
     def expected_solves(self, ctx):
         return len(ctx.methods) * len(ctx.settings["seq_scales"]) * ctx.settings["seq_frames"]
 
     def measure(self, ctx, tick):
         s = ctx.settings
-        return run(ctx.methods, s["seq_scales"], s["seq_frames"], ctx.extra, tick)
+        return run(ctx.methods, s["seq_scales"], s["seq_frames"], ctx.extra, tick, s["dim"])
 
     def section(self, res):
         meta = res.meta.get("sequence", {})

@@ -7,14 +7,14 @@ from ..aggregate import cells
 from ..cases import table_problems
 from ..markdown import image, its, md_table, missing, ms, n_label, pm, sci, time_cell, tol
 from ..plotting import time_bars
-from .base import FRAMES, SCALES, Study, solve_all
+from .base import DIM, FRAMES, SCALES, Study, solve_all
 
 CHART = "table4.png"
 
 
-def run(methods, scales, frames, extra, tick) -> list:
+def run(methods, scales, frames, extra, tick, dim=2) -> list:
     """Every method on ``frames`` held-out frames per N (one warm-up per method and N)."""
-    return solve_all(methods, table_problems(scales, frames), extra, tick, "table")
+    return solve_all(methods, table_problems(scales, frames, dim), extra, tick, "table")
 
 
 def _fastest(by, methods, n):
@@ -48,16 +48,17 @@ class Table(Study):
     name = "table"
     help = "paper Table 4: setup/solve ms and iterations per method and N"
     default = True
-    sizes = (SCALES, FRAMES)
+    sizes = (SCALES, FRAMES, DIM)
 
     def meta(self, settings):
-        return {"scales": settings["scales"], "frames": settings["frames"]}
+        return {"scales": settings["scales"], "frames": settings["frames"], "dim": settings["dim"]}
 
     def expected_solves(self, ctx):
         return len(ctx.methods) * len(ctx.settings["scales"]) * ctx.settings["frames"]
 
     def measure(self, ctx, tick):
-        return run(ctx.methods, ctx.settings["scales"], ctx.settings["frames"], ctx.extra, tick)
+        s = ctx.settings
+        return run(ctx.methods, s["scales"], s["frames"], ctx.extra, tick, s["dim"])
 
     def section(self, res):
         by, methods, scales = cells(res.rows["table"], "method", "n"), res.methods("table"), res.scales("table")
