@@ -22,7 +22,7 @@ Options
                         last rebuilt frame; a frame that needs more rebuilds on the
                         spot and goes on from its iterate (default 1.5)
     -out DIR            output folder (default results/flow)
-    -quick              a few frames at 32 x 32
+    -quick              a few frames at 32 x 32 (16^3 in 3-D)
     -animate            also write DIR/METHOD.gif (density and pressure; in 3-D the heavy phase shaded
                         as seen along y, and the pressure's central slice)
     -method_name NAME   label of a single run (default: the options file's name)

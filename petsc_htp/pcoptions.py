@@ -8,7 +8,7 @@ from . import checkpoint
 
 ORDERINGS = ("auto", "morton", "graph", "rcm", "natural", "metis")
 VARIANTS = ("paper", "twolevel")
-COARSE = ("const", "eig", "learned")
+COARSE = ("auto", "const", "eig", "learned")
 FALLBACKS = ("none", "jacobi")
 FORMS = ("auto", "deflated", "balanced")
 
@@ -23,8 +23,10 @@ HELP = {
     "ordering": "auto (Morton with coordinates, else RCM for paper and graph for twolevel), morton, rcm, natural, "
                 "graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's graph, METIS when "
                 "that graph is not 2-D-like) or metis (twolevel)",
-    "leaf": "twolevel: rows per leaf (the paper's leaf size is the network's)",
-    "coarse": "twolevel coarse space: const (r=1), eig (local Neumann eigenvectors) or learned (network)",
+    "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D, 64 in 3-D); the paper's leaf size is the "
+            "network's",
+    "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D), const (r=1), eig "
+              "(local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r: each piece's constant and r - 1 more (eig; learned takes "
                    "the network's r)",
@@ -53,8 +55,8 @@ class HTPOptions:
     checkpoint: str = ""
     device: str = "auto"
     ordering: str = "auto"
-    leaf: int = 32
-    coarse: str = "eig"
+    leaf: int = 0
+    coarse: str = "auto"
     coarse_rank: int = 2
     coarse_checkpoint: str = ""
     coarse_tol: float = 0.0
@@ -88,7 +90,9 @@ class HTPOptions:
         for name in ("shift", "coarse_tol"):
             if not math.isfinite(getattr(self, name)) or getattr(self, name) < 0:
                 raise ValueError(f"{opt}{name} must be a finite non-negative number, got {getattr(self, name)}")
-        for name, low in (("threads", 1), ("leaf", 2), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1),
+        if self.leaf == 1 or self.leaf < 0:
+            raise ValueError(f"{opt}leaf must be 0 (by the problem) or >= 2, got {self.leaf}")
+        for name, low in (("threads", 1), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1),
                           ("overlap", 0)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")

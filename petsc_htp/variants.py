@@ -101,7 +101,7 @@ class TwoLevel:
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
         keep = previous is not None and previous.age + 1 < self.opts.coarse_space_every
-        analysis.cfg = self.config()
+        analysis.cfg = analysis.resolved(self.config())
         analysis.numeric(A, density, keep_space=keep)
         return analysis
 

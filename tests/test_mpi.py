@@ -56,3 +56,31 @@ def test_twolevel_coarse_space_is_global_across_ranks():
         its[ranks] = int(re.search(r"^iterations: (\d+)$", out, re.M).group(1))
     assert abs(its[2] - its[1]) <= 0.1 * its[1], its
     assert size[1] == size[2] >= 32 * 4 - 1, size                  # the same leaves keep the same vectors
+
+
+def test_3d_bench_on_two_ranks(tmp_path):
+    """``mpiexec -n 2 petsc-htp bench --dim 3``: PETSc methods on both ranks, pyamg and AMGCL on rank 0, one
+    results folder, peak RSS on every row."""
+    import json
+    import os
+
+    out = tmp_path / "bench"
+    env = {**os.environ, "PETSC_HTP_CACHE": str(tmp_path / "cache"), "OMP_NUM_THREADS": "1"}
+    run = subprocess.run([MPIEXEC, "-n", "2", sys.executable, "-m", "petsc_htp.bench", "--quick", "--dim", "3",
+                          "--studies", "table", "sequence", "--methods", "cg_htp", "cg_gamg", "cg_icc",
+                          "cg_bjacobi_icc", "pyamg", "amgcl", "--scales", "4096", "--frames", "1", "--seq-scales",
+                          "4096", "--seq-frames", "2", "--no-progress", "--out", str(out)],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stdout + run.stderr
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["threads"]["MPI ranks"] == 2 and meta["dim"] == 3
+    rows = [json.loads(line) for name in ("table", "sequence") for line in (out / f"{name}.jsonl").open()]
+    frames = [r for r in rows if r.get("kind", "frame") == "frame"]
+    ok = {r["method"] for r in frames if r["ok"]}
+    assert ok >= {"cg_htp", "cg_gamg", "cg_bjacobi_icc", "pyamg"}, frames
+    assert not any(r["ok"] for r in frames if r["method"] == "cg_icc")          # PETSc has no parallel ICC
+    assert all(r["peak_rss_mb"] > 0 for r in frames)
+    htp = [r for r in frames if r["method"] == "cg_htp"]
+    assert all(r["iterations"] <= 40 and r["relres"] <= 1.01e-8 for r in htp), htp
+    report = (out / "report.md").read_text()
+    assert "**2 MPI ranks**" in report and "**3-D scenes**" in report and "Peak RSS" in report

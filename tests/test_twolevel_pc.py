@@ -12,6 +12,7 @@ import petsc_htp  # noqa: E402
 from petsc_htp.bench.studies.stability import problems as stability_problems  # noqa: E402
 from petsc_htp.checks import min_rayleigh  # noqa: E402
 from petsc_htp.scenes.dataset import load_dataset  # noqa: E402
+from petsc_htp.twolevel import sizing  # noqa: E402
 from petsc_htp.twolevel.leaves import choose_leaves  # noqa: E402
 from petsc_htp.methods import reason_name  # noqa: E402
 from petsc_htp.twolevel.batched import analyse, factor  # noqa: E402
@@ -381,12 +382,41 @@ def test_3d_frame_with_coordinates_and_bare(cube):
     mat = petsc_mat(cube.A)
     petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
     reason, its, relres, ksp = solve(mat, cube.b, htp_variant=None)
-    leaves = ksp.getPC().getPythonContext().setup.leaves
-    assert reason > 0 and relres <= 1.01e-8 and its <= 40 and leaves.kind.startswith("morton")
+    setup = ksp.getPC().getPythonContext().setup
+    assert reason > 0 and relres <= 1.01e-8 and its <= 40 and setup.leaves.kind.startswith("morton")
+    assert (setup.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (3, 64, "const", "icc")
+    assert "L=64 (leaf and coarse by the problem: 3-D)" in setup.describe()[0]
     p = np.random.default_rng(0).permutation(cube.n)
     reason, bare_its, relres, ksp = solve(petsc_mat(cube.A[p][:, p]), cube.b[p], htp_variant=None)
+    setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1.01e-8 and bare_its <= 45
-    assert ksp.getPC().getPythonContext().setup.leaves.kind == "metis"      # not 2-D-like: METIS parts
+    assert setup.leaves.kind == "metis" and (setup.dim, setup.cfg.coarse) == (3, "const")    # 7-point rows
+
+
+def test_3d_defaults_give_way_to_the_users_options(cube):
+    mat = petsc_mat(cube.A)
+    petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
+    reason, its, relres, ksp = solve(mat, cube.b, htp_leaf=128, htp_coarse="eig", htp_leaf_pc_type="cholesky")
+    setup = ksp.getPC().getPythonContext().setup
+    assert reason > 0 and relres <= 1.01e-8
+    assert (setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType(), setup.leafsolver.exact) == \
+        (128, "eig", "cholesky", True)
+    assert "L=128," in setup.describe()[0] and "by the problem" not in setup.describe()[0]
+
+
+def test_2d_defaults(frames):
+    mat = petsc_mat(frames[0].A)
+    petsc_htp.attach(mat, coords=frames[0].coords, density=frames[0].rho)
+    reason, its, relres, ksp = solve(mat, frames[0].b)
+    setup = ksp.getPC().getPythonContext().setup
+    assert reason > 0 and relres <= 1.01e-8
+    assert (setup.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (2, 32, "eig", "cholesky")
+    assert "L=32 (leaf and coarse by the problem: 2-D)" in setup.describe()[0]
+
+
+def test_dimension_rule():
+    assert sizing.dimension(3, 5 * 100, 100) == 3 and sizing.dimension(2, 7 * 100, 100) == 2
+    assert sizing.dimension(None, 7 * 100, 100) == 3 and sizing.dimension(None, 5 * 100, 100) == 2
 
 
 @pytest.mark.parametrize("opts, message", [({"htp_variant": "paper"}, "-htp_variant paper is 2-D only"),

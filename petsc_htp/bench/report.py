@@ -72,6 +72,14 @@ def header(res) -> str:
         "true residual ||b - A x|| / ||b|| (constant null-space part removed) above 10 × rtol; failed "
         "frames are left out of the means and counted.",
     ]
+    dims = {m.get("dim")} | {v.get("dim") for v in m.values() if isinstance(v, dict)}
+    if 3 in dims:
+        lines += ["", "**3-D scenes** (`--dim 3`): the generator's near-cubic boxes in octree (Morton) order, "
+                  "7-point operator; N = side³ where N is a cube."]
+    ranks = m.get("threads", {}).get("MPI ranks", 1)
+    if ranks > 1:
+        lines += ["", f"**{ranks} MPI ranks**: PETSc methods run on all of them (the matrix split by rows); "
+                  "pyamg and AMGCL solve the gathered matrix on rank 0 alone. Peak RSS is the largest over ranks."]
     if m.get("quick"):
         lines += ["", "**Quick run** (`--quick`): CI-sized scales, frames and budgets; not for comparison."]
     return "\n".join(lines)

@@ -8,12 +8,13 @@ import scipy.sparse as sp
 import torch
 
 from ..pcoptions import HTPOptions
+from ..twolevel.sizing import LEAF
 from .timing import _capture, _device, _sync, _timed
 
 METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig", "twolevel_learned")
 # (leaf size, coarse vectors per leaf) of the two-level coarse spaces: options/cg_twolevel_const.opts, HTPPC's
 # defaults (options/cg_htp.opts) and options/cg_twolevel_learned.opts (the network's rank)
-SETTINGS = {"const": (16, 1), "eig": (HTPOptions.leaf, HTPOptions.coarse_rank), "learned": (128, None)}
+SETTINGS = {"const": (16, 1), "eig": (LEAF[2], HTPOptions.coarse_rank), "learned": (128, None)}
 
 
 def _constant_null(A) -> bool:

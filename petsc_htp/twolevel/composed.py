@@ -21,6 +21,7 @@ per connected component (:mod:`petsc_htp.twolevel.nullspace`).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -29,19 +30,16 @@ import scipy.sparse as sp
 import torch
 from petsc4py import PETSc
 
-from . import coarsespace, nullspace
+from . import coarsespace, nullspace, sizing
 from ..checks import rayleigh_reason
 from .leaflayout import layout
-from .leafsolvers import LEAF_DEFAULTS, ExactLeaves, OverlappingLeaves, seqaij
+from .leafsolvers import ExactLeaves, OverlappingLeaves, seqaij
 from .leaves import choose_leaves
 
 SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
 COARSE_TEXT = {"const": "the constant of each piece of each leaf",
                "eig": "piece constants and one inverse-iteration step of each leaf's Neumann matrix from smooth seeds",
                "learned": "piece constants and the coarse network's vectors refined by the same step as eig"}
-COARSE_DEFAULTS = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
-COARSE_DEFAULTS_MPI = {"pc_type": "redundant", "redundant_pc_type": "lu",
-                       "redundant_pc_factor_mat_ordering_type": "qmd", "redundant_pc_factor_shift_type": "nonzero"}
 
 
 @dataclass(frozen=True)
@@ -51,11 +49,11 @@ class Config:
     Attributes
     ----------
     leaf : int
-        Rows per leaf.
+        Rows per leaf; 0: by the problem's dimension (:mod:`petsc_htp.twolevel.sizing`).
     ordering : str
         Leaf layout: auto, morton, metis, natural or rcm (:func:`petsc_htp.twolevel.leaves.choose_leaves`).
     coarse : str
-        const, eig or learned.
+        const, eig, learned or auto (by the problem's dimension).
     rank : int
         Vectors per leaf r: the piece constants and r - 1 more (eig; learned takes the network's r).
     tol : float
@@ -66,7 +64,7 @@ class Config:
         0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).
     """
 
-    leaf: int = 128
+    leaf: int = 0
     ordering: str = "auto"
     coarse: str = "eig"
     rank: int = 4
@@ -169,10 +167,14 @@ class TwoLevelPC:
 
     def _analyse(self, mat, rows, coords, cfg, prefix, net):
         t0 = time.perf_counter()
-        self.mat, self.cfg, self.net, self.coords = mat, cfg, net, coords
+        self.mat, self.net, self.coords = mat, net, coords
         self.comm, self.coll = mat.getComm(), _Collective(mat.getComm())
         start, end = mat.getOwnershipRange()
         block = rows if self.coll.size == 1 else rows[:, start:end].tocsr()
+        N = mat.getSize()[0]
+        self.dim = sizing.dimension(None if coords is None else coords.shape[1], self.coll.sum(rows.nnz), N)
+        self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
+        self.cfg = cfg = self.resolved(cfg)
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf)
         self.lay = layout(rows, start, self.leaves)
         self._torch_analysis = None
@@ -186,6 +188,11 @@ class TwoLevelPC:
         self.times, self.age, self.kept, self._forced, self._dense = {}, 0, None, None, None
         self.numeric_count = 0
         self.analysis_ms = _ms(t0)
+
+    def resolved(self, cfg) -> Config:
+        """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
+        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim),
+                                   coarse=sizing.coarse(self.dim) if cfg.coarse == "auto" else cfg.coarse)
 
     # ------------------------------------------------------------------ analysis
     def _components(self, rows):
@@ -262,7 +269,7 @@ class TwoLevelPC:
         lay, comm = self.lay, self.comm
         n, N = lay.n, self.mat.getSize()[0]
         self.d_values = np.zeros(lay.d_src.size)
-        factor = lambda m: _pc(PETSc.COMM_SELF, m, prefix + "leaf_", LEAF_DEFAULTS)     # noqa: E731
+        factor = lambda m: _pc(PETSc.COMM_SELF, m, prefix + "leaf_", sizing.leaf_factor(self.dim))     # noqa: E731
         if self.cfg.overlap:
             self.leafsolver = OverlappingLeaves(lay, rows, self.cfg.overlap, factor)
         else:
@@ -315,7 +322,11 @@ class TwoLevelPC:
         self._products()
         T["products"] = _ms(t0)
         t0 = time.perf_counter()
-        self.coarse.setUp()
+        with _scoped(self.coarse_prefix, self._coarse_defaults):    # PCREDUNDANT's inner solver reads them now
+            self.coarse.setUp()
+            if self.coarse.getType() == "redundant":               # it factors at its first apply: do that here
+                self.g.set(0.0)
+                self.coarse.apply(self.g, self.c)
         T["coarse_factor"] = _ms(t0)
         self.times, self.null_components = T, int(null.sum())
         self.numeric_count += 1
@@ -411,10 +422,11 @@ class TwoLevelPC:
         if self.col_block > 1:                      # block LU kernels: a third faster to factor and to apply
             self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
-            defaults = dict(COARSE_DEFAULTS if self.coll.size == 1 else COARSE_DEFAULTS_MPI)
+            defaults = sizing.coarse_factor(self.dim, self.coll.size > 1)
             if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.coarse = _pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
+            self._coarse_defaults = defaults
             self.g, self.c, self.c2 = (self.E.createVecLeft() for _ in range(3))
 
     # ------------------------------------------------------------------ apply
@@ -581,7 +593,8 @@ class TwoLevelPC:
         q = (f"{kept.min()}-{kept.max()} per leaf (mean {kept.mean():.2f})" if kept.min() != kept.max()
              else f"{kept.min()} per leaf")
         n = self.mat.getSize()[0]
-        return [f"leaves: {lv.kind}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), sizes "
+        auto = f" ({' and '.join(self.auto)} by the problem: {self.dim}-D)" if self.auto else ""
+        return [f"leaves: {lv.kind}, L={cfg.leaf}{auto}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), sizes "
                 f"{lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces; {self.leafsolver.describe()}",
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
                 + (f" (up to {self.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"

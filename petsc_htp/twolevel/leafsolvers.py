@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-LEAF_DEFAULTS = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
 EXACT = ("cholesky", "lu")        # leaf PC types that solve D exactly
 
 

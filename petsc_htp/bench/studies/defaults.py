@@ -26,30 +26,31 @@ RANKS = Size("defaults_ranks", [2, 3, 4, 6, 8], [2, 4], "coarse ranks r of the d
 OVERLAPS = Size("defaults_overlaps", [0, 1], [0, 1], "leaf overlaps of the defaults sweep")
 LEAF_PCS = Size("defaults_leaf_pcs", ["cholesky"], ["cholesky"],
                 "leaf factorisations of the defaults sweep: cholesky (exact) and/or icc", kind=str)
-FORMS = ("deflated", "balanced")
+FORMS = Size("defaults_forms", ["deflated", "balanced"], ["deflated", "balanced"], "forms of the defaults sweep",
+             kind=str)
 ITERATION_BAR = {2: 35, 3: 40}     # the most CG iterations a default may take on any frame, by dimension
 
 
-def configurations(leaves, ranks, overlaps, leaf_pcs=("cholesky",)) -> list:
+def configurations(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced")) -> list:
     """Every (name, coarse, L, r, overlap, form, leaf PC) of the sweep: eig at every r, const once per L."""
     out = []
     for pc in leaf_pcs:
         tail = "" if pc == "cholesky" else f" {pc}"
         for L in leaves:
             for ov in overlaps:
-                for form in FORMS:
+                for form in forms:
                     out += [(f"eig L{L} r{r} ov{ov} {form}{tail}", "eig", L, r, ov, form, pc) for r in ranks]
                     out.append((f"const L{L} ov{ov} {form}{tail}", "const", L, 1, ov, form, pc))
     return out
 
 
-def sweep_methods(leaves, ranks, overlaps, leaf_pcs=("cholesky",)) -> list:
+def sweep_methods(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced")) -> list:
     """The sweep's configurations as benchmark methods."""
     from ..methods import Method, resolve_method
 
     base = {"eig": resolve_method("cg_twolevel_eig"), "const": resolve_method("cg_twolevel_const")}
     out = []
-    for name, coarse, L, r, ov, form, pc in configurations(leaves, ranks, overlaps, leaf_pcs):
+    for name, coarse, L, r, ov, form, pc in configurations(leaves, ranks, overlaps, leaf_pcs, forms):
         extra = (("htp_leaf", str(L)), ("htp_overlap", str(ov)), ("htp_form", form), ("htp_coarse_tol", "0"),
                  ("htp_leaf_pc_type", pc))
         extra += (("htp_coarse_rank", str(r)),) if coarse == "eig" else ()
@@ -109,7 +110,7 @@ def forms(res) -> str:
     if not pick:
         return ""
     lines = []
-    for form in FORMS:
+    for form in ("deflated", "balanced"):
         name = pick.replace("deflated", form).replace("balanced", form)
         for (m, n), a in sorted(apply.items()):
             if m == name:
@@ -147,18 +148,18 @@ class Defaults(Study):
 
     name = "defaults"
     help = "defaults by time: two-level leaf size, coarse rank, overlap and form in sequence mode; the front"
-    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS, LEAF_PCS, DIM)
+    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS, LEAF_PCS, FORMS, DIM)
     readme_links = ((CHART, "defaults sweep"),)
 
     def meta(self, settings):
         return {"defaults": {k: settings[s.name] for k, s in (("scales", SCALES), ("frames", FRAMES),
                                                                 ("leaves", LEAVES), ("ranks", RANKS),
                                                                 ("overlaps", OVERLAPS), ("leaf_pcs", LEAF_PCS),
-                                                                ("dim", DIM))}}
+                                                                ("forms", FORMS), ("dim", DIM))}}
 
     def _methods(self, s):
         return sweep_methods(s["defaults_leaves"], s["defaults_ranks"], s["defaults_overlaps"],
-                             s["defaults_leaf_pcs"])
+                             s["defaults_leaf_pcs"], s["defaults_forms"])
 
     def expected_solves(self, ctx):
         s = ctx.settings
@@ -178,7 +179,7 @@ class Defaults(Study):
             "## Defaults by time (two-level variant)",
             f"{meta.get('dim', 2)}-D scenes: `cg_twolevel_eig` at leaf sizes {meta.get('leaves')}, coarse ranks "
             f"{meta.get('ranks')}, overlaps {meta.get('overlaps')}, leaf factorisations "
-            f"{meta.get('leaf_pcs', ['cholesky'])} and both forms, and `cg_twolevel_const` at each leaf size, "
+            f"{meta.get('leaf_pcs', ['cholesky'])} and forms {meta.get('forms', ['deflated', 'balanced'])}, and `cg_twolevel_const` at each leaf size, "
             f"overlap, factorisation and form (`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} "
             "frames per N, configurations "
             "interleaved frame by frame). Median ms per frame (setup + solve) after the first frame, mean "

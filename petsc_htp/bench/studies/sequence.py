@@ -35,11 +35,9 @@ def _ctx(solver):
 
 def _petsc_row(solver, frame, rtol) -> dict:
     """Solve one frame with a persistent solver; its row (with the two-level phases)."""
-    from ..runner import peak_rss_mb
     from .simulation import frame_row
 
     row = frame_row(solver.solve(frame.A, frame.b, frame.coords, frame.rho, rebuild=True), rtol)
-    row["peak_rss_mb"] = peak_rss_mb()
     ctx = _ctx(solver)
     if ctx is not None:
         row.update(phases=dict(ctx.setup.times), analysis_ms=ctx.setup.analysis_ms,
@@ -60,8 +58,12 @@ def _solvers(methods, first, extra) -> tuple:
         if m.is_petsc:
             loaded.append(load(m, extra))
             warm = PressureSolver(first.A, regions, m.prefix, warm=False)
-            warm.solve(first.A, first.b, first.coords, first.rho, rebuild=True)
-            warm.destroy()
+            try:
+                warm.solve(first.A, first.b, first.coords, first.rho, rebuild=True)
+            except Exception:  # the method fails again on every frame, and its rows say why
+                pass
+            finally:
+                warm.destroy()
             solvers[m.name] = PressureSolver(first.A, regions, m.prefix, warm=False)
     return loaded, solvers
 
@@ -69,7 +71,7 @@ def _solvers(methods, first, extra) -> tuple:
 def run(methods, scales, frames, extra, tick, dim=2) -> list:
     """Every method over ``frames`` held-out frames per N, frame by frame, one persistent solver each."""
     from ..external import missing
-    from ..runner import _solve, exception_row
+    from ..runner import _solve, exception_row, peak_rss_mb
     from ..cases import Problem
 
     rows = []
@@ -87,7 +89,7 @@ def run(methods, scales, frames, extra, tick, dim=2) -> list:
                             row = _petsc_row(solvers[m.name], frame, solvers[m.name].ksp.getTolerances()[0])
                         except Exception as exc:  # a failing frame is a result
                             row = exception_row(m, Problem(frame), exc)
-                        row.update(method=m.name, n=n)
+                        row.update(method=m.name, n=n, peak_rss_mb=peak_rss_mb())
                     else:
                         row = _solve(m, m.prefix, Problem(frame, case="sequence"), False)
                     rows.append(tag(row, study="sequence", kind="frame", frame=k, first=k == 0))

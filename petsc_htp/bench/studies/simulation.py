@@ -14,7 +14,7 @@ import numpy as np
 
 from ...sim.flow import Flow
 from ...methods import Loaded
-from ...scenes.generator import Frame
+from ...scenes.generator import Frame, row_major
 from ..aggregate import FPS_BUDGETS, group, ordered
 from ..cases import Problem, held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, ratio
@@ -46,8 +46,9 @@ def is_twolevel(method) -> bool:
     return is_htp(method) and not (_uses(method, "-htp_variant paper") or _uses(method, "-sub_htp_variant paper"))
 
 
-def recorded_run(side, frames, seed=0):
-    """The pressure systems of ``frames`` frames of a ``side`` x ``side`` run, and the fluid regions.
+def recorded_run(side, frames, seed=0, dim=2):
+    """The pressure systems of ``frames`` frames of a ``side`` x ``side`` (x ``side`` with ``dim`` 3) run,
+    and the fluid regions.
 
     Returns
     -------
@@ -60,7 +61,7 @@ def recorded_run(side, frames, seed=0):
     from ...sim.simulation import PressureSolver
     from ..runner import PRINT_ONLY
 
-    sim = Flow(side, side, density_ratio=DENSITY_RATIO, seed=seed)
+    sim = Flow(side, side, nz=side if dim == 3 else None, density_ratio=DENSITY_RATIO, seed=seed)
     systems, solver = [], None
     with Loaded(REFERENCE, prefix="sim_reference_"):
         for name in PRINT_ONLY:
@@ -76,12 +77,12 @@ def recorded_run(side, frames, seed=0):
     return systems, sim.regions
 
 
-def flow_frames(n, count, seed=0) -> list:
-    """``count`` frames of a run at about ``n`` cells as generator-style :class:`Frame` (rho = 1/rho)."""
-    side = max(8, round(math.sqrt(n)))
-    systems, _ = recorded_run(side, count, seed)
-    sim = Flow(side, side, density_ratio=DENSITY_RATIO, seed=seed)
-    return [Frame(A=A, b=b, rho=coef, coords=coords, grid_shape=(side, side), perm=sim.iy * side + sim.ix,
+def flow_frames(n, count, seed=0, dim=2) -> list:
+    """``count`` frames of a ``dim``-D run at about ``n`` cells as generator-style :class:`Frame` (rho = 1/rho)."""
+    side = max(8, round(n ** (1.0 / dim)))
+    systems, _ = recorded_run(side, count, seed, dim)
+    sim = Flow(side, side, nz=side if dim == 3 else None, density_ratio=DENSITY_RATIO, seed=seed)
+    return [Frame(A=A, b=b, rho=coef, coords=coords, grid_shape=(side,) * dim, perm=row_major(sim.idx, sim.shape),
                   params={"n": A.shape[0], "seed": k, "source": "flow"})
             for k, (A, b, coords, coef) in enumerate(systems)]
 

@@ -19,7 +19,7 @@ from ..aggregate import first_failure, group, ordered, summary
 from ..cases import Problem, held_out_frames, held_out_seeds
 from ..markdown import image, its, md_table, n_label, sci
 from ..plotting import figure, heatmap, save
-from .base import Size, Study, solve_all
+from .base import DIM, Size, Study, solve_all
 
 CHART = "stability.png"
 STRESS = (
@@ -96,36 +96,39 @@ def over_budget(rows, budget_ms) -> list:
     return rows
 
 
-def _contrast(n, count, value):
+def _contrast(n, count, value, dim=2):
     """Frames whose heavy density is fixed at ``value`` (range ``[0.99 value, value]``)."""
-    return [make_frame(n, s, "full", contrast=(0.99 * value, value)) for s in held_out_seeds(count)]
+    return [make_frame(n, s, "full", contrast=(0.99 * value, value), dim=dim) for s in held_out_seeds(count)]
 
 
-def problems(n, frames, large_n, odd_n, huge_n) -> list:
-    """Every stress case of :data:`STRESS`, ``frames`` frames each (grouped by case)."""
+def problems(n, frames, large_n, odd_n, huge_n, dim=2) -> list:
+    """Every stress case of :data:`STRESS` in ``dim`` dimensions, ``frames`` frames each (grouped by case)."""
     from .simulation import flow_frames
 
-    base = held_out_frames(n, frames)
+    def held(size, distribution="full"):
+        return held_out_frames(size, frames, distribution, dim)
+
+    base = held(n)
     cases = {
         "reference": [Problem(f) for f in base],
-        "contrast 1e2": [Problem(f) for f in _contrast(n, frames, 1e2)],
-        "contrast 1e3": [Problem(f) for f in _contrast(n, frames, 1e3)],
-        "contrast 1e4": [Problem(f) for f in _contrast(n, frames, 1e4)],
-        "contrast 1e6": [Problem(f) for f in _contrast(n, frames, 1e6)],
-        "contrast 1e8": [Problem(f) for f in _contrast(n, frames, 1e8)],
-        "closed only": [Problem(f) for f in held_out_frames(n, frames, "closed_only")],
-        "regions": [Problem(sealed(f)) for f in held_out_frames(n, frames, "closed_only")],
-        "large N": [Problem(f) for f in held_out_frames(large_n, frames)],
-        "huge N": [Problem(f) for f in held_out_frames(huge_n, frames)],
-        "odd N": [Problem(f) for f in held_out_frames(odd_n, frames)],
+        "contrast 1e2": [Problem(f) for f in _contrast(n, frames, 1e2, dim)],
+        "contrast 1e3": [Problem(f) for f in _contrast(n, frames, 1e3, dim)],
+        "contrast 1e4": [Problem(f) for f in _contrast(n, frames, 1e4, dim)],
+        "contrast 1e6": [Problem(f) for f in _contrast(n, frames, 1e6, dim)],
+        "contrast 1e8": [Problem(f) for f in _contrast(n, frames, 1e8, dim)],
+        "closed only": [Problem(f) for f in held(n, "closed_only")],
+        "regions": [Problem(sealed(f)) for f in held(n, "closed_only")],
+        "large N": [Problem(f) for f in held(large_n)],
+        "huge N": [Problem(f) for f in held(huge_n)],
+        "odd N": [Problem(f) for f in held(odd_n)],
         "rtol 1e-10": [Problem(f, rtol=1e-10) for f in base],
         "rtol 1e-12": [Problem(f, rtol=1e-12) for f in base],
         "rtol 1e-14": [Problem(f, rtol=1e-14) for f in base],
         "natural order": [Problem(natural_order(f), attach=False) for f in base],
         "permuted bare": [Problem(permuted(f, k), attach=False) for k, f in enumerate(base)],
-        "buoyancy rhs": [Problem(make_frame(n, s, "full", rhs="buoyancy")) for s in held_out_seeds(frames)],
+        "buoyancy rhs": [Problem(make_frame(n, s, "full", rhs="buoyancy", dim=dim)) for s in held_out_seeds(frames)],
         "inconsistent rhs": [Problem(inconsistent(f)) for f in base],
-        "simulation": [Problem(f) for f in flow_frames(n, frames)],
+        "simulation": [Problem(f) for f in flow_frames(n, frames, dim=dim)],
     }
     out = []
     for name, _ in STRESS:
@@ -138,7 +141,7 @@ def problems(n, frames, large_n, odd_n, huge_n) -> list:
 def run(methods, settings, extra, tick) -> list:
     """Every method on every stress case (no warm-up: iterations and failures matter here), budget applied."""
     s = settings
-    cases = problems(s["stress_n"], s["stress_frames"], s["large_n"], s["odd_n"], s["huge_n"])
+    cases = problems(s["stress_n"], s["stress_frames"], s["large_n"], s["odd_n"], s["huge_n"], s["dim"])
     return over_budget(solve_all(methods, cases, extra, tick, "stability", warmup=False), s["frame_budget_ms"])
 
 
@@ -216,13 +219,14 @@ class Stability(Study):
              Size("large_n", 65536, 2048, "the 'large N' stress case"),
              Size("odd_n", 3000, 300, "the 'odd N' stress case"),
              Size("huge_n", 262144, 4096, "the 'huge N' stress case"),
-             Size("frame_budget_ms", 41.7, 41.7, "setup + solve ms a stress frame may take (24 fps)"))
+             Size("frame_budget_ms", 41.7, 41.7, "setup + solve ms a stress frame may take (24 fps)"), DIM)
     readme_links = ((CHART, "stability map"),)
 
     def meta(self, settings):
         return {"stress": {"n": settings["stress_n"], "frames": settings["stress_frames"],
                            "large_n": settings["large_n"], "odd_n": settings["odd_n"],
-                           "huge_n": settings["huge_n"], "budget_ms": settings["frame_budget_ms"]}}
+                           "huge_n": settings["huge_n"], "budget_ms": settings["frame_budget_ms"],
+                           "dim": settings["dim"]}}
 
     def expected_solves(self, ctx):
         return len(ctx.methods) * len(STRESS) * ctx.settings["stress_frames"]

@@ -73,6 +73,9 @@ class Table(Study):
                                           for n in scales if (c := by.get((m, n))))]
         memory = [[m] + [f"{c['bytes_per_unknown']['median']:.0f}" if (c := by.get((m, n))) and
                          not missing(c["bytes_per_unknown"]["median"]) else "—" for n in scales] for m in held]
+        peak = {(r["method"], r["n"]): r["peak_rss_mb"] for r in res.rows["table"] if r.get("peak_rss_mb")}
+        rss = [[m] + [f"{peak[(m, n)]:.0f} ({peak[(m, n)] * 2 ** 20 / n:.0f} B/unknown)" if (m, n) in peak else "—"
+                      for n in scales] for m in methods]
         return "\n\n".join([
             "## 1. Time per frame (paper Table 4)",
             body(res),
@@ -85,6 +88,10 @@ class Table(Study):
             "Memory held by the HTP preconditioners (bytes per unknown, median; factors, inverses, coarse "
             "space and the operator copy they keep):",
             md_table(head, memory) if held else "(no HTP method in this run)",
+            "Peak RSS of the process (MiB, largest over ranks; per unknown in parentheses) when each method "
+            "finished its frames at that N. It only grows during a run, so it is one method's own peak when the "
+            "run has one method (as in README's memory runs), else an upper bound:",
+            md_table(head, rss) if peak else "(not recorded)",
         ])
 
     def charts(self, res, out):

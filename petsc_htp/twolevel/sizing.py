@@ -1,0 +1,51 @@
+"""The two-level method sized by the problem: its dimension picks the leaf size, coarse space and leaf factor.
+
+Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies defaults [--dim 3]``; README):
+
+- 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
+- 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
+  they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
+  coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD.
+
+The coarse LU runs redundantly on every rank of a parallel matrix (PCREDUNDANT).
+
+PETSc-free (the fast path imports it).
+"""
+from __future__ import annotations
+
+LEAF = {2: 32, 3: 64}
+COARSE = {2: "eig", 3: "const"}
+NNZ_PER_ROW_3D = 6.0       # a bare matrix whose rows hold more nonzeros on average is taken as 3-D (7-point)
+EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
+FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
+COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
+COARSE_ORDERING = {2: "qmd", 3: "nd"}
+
+
+def dimension(coords_dim, nnz: int, n: int) -> int:
+    """2 or 3: the attached coordinates' dimension, else 3 for rows averaging more than
+    :data:`NNZ_PER_ROW_3D` nonzeros (``nnz`` of the whole ``n``-row matrix), else 2."""
+    if coords_dim is not None:
+        return 3 if int(coords_dim) == 3 else 2
+    return 3 if nnz > NNZ_PER_ROW_3D * max(n, 1) else 2
+
+
+def leaf_size(dim: int) -> int:
+    """Rows per leaf in ``dim`` dimensions."""
+    return LEAF[dim]
+
+
+def coarse(dim: int) -> str:
+    """The coarse space in ``dim`` dimensions."""
+    return COARSE[dim]
+
+
+def leaf_factor(dim: int) -> dict:
+    """The leaf factor's PETSc options (under ``<prefix>htp_leaf_``) in ``dim`` dimensions."""
+    return dict(FACTOR[dim])
+
+
+def coarse_factor(dim: int, parallel: bool) -> dict:
+    """The coarse solver's PETSc options (under ``<prefix>htp_cs_``) in ``dim`` dimensions."""
+    opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": COARSE_ORDERING[dim]}
+    return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts
