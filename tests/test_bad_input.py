@@ -38,7 +38,7 @@ EXPECTED = {
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
-    "unknown_coarse": r"error: -htp_coarse 'fancy' unknown; use one of const, eig, learned",
+    "unknown_coarse": r"error: -htp_coarse 'fancy' unknown; use one of auto, const, eig, learned",
 }
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2")}
