@@ -3,7 +3,8 @@
     M = Q + (I - QA) B (I - AQ)  (balanced)   or   M = Q + (I - QA) B  (deflated),   Q = W (W^T A W)^-1 W^T
 
 B = D^-1 solves the leaves exactly: D, A's leaf blocks in the leaves' row order, is one sparse matrix per
-rank with one Cholesky factor (natural ordering: the leaves are contiguous). W holds the coarse vectors
+rank with one Cholesky factor (natural ordering: the leaves are contiguous; ICC(0) by default in 3-D, where
+B only approximates D^-1 and the forms go through A W; :mod:`petsc_htp.twolevel.sizing`). W holds the coarse vectors
 of every leaf (:mod:`petsc_htp.twolevel.coarsespace`), E = W^T A W is solved by a sparse direct factor. Because
 D B = I, W^T A B x = W^T x + C^T B x with C = (A - D) W, the couplings between leaves times W (a few
 rows per leaf); so the deflated form is y = v - W E^-1 C^T v with v = B x: one leaf solve, one coarse
@@ -66,7 +67,7 @@ class Config:
 
     leaf: int = 0
     ordering: str = "auto"
-    coarse: str = "eig"
+    coarse: str = "auto"
     rank: int = 4
     tol: float = 0.0
     form: str = "auto"
@@ -191,8 +192,8 @@ class TwoLevelPC:
 
     def resolved(self, cfg) -> Config:
         """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
-        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim),
-                                   coarse=sizing.coarse(self.dim) if cfg.coarse == "auto" else cfg.coarse)
+        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.LEAF[self.dim],
+                                   coarse=sizing.COARSE[self.dim] if cfg.coarse == "auto" else cfg.coarse)
 
     # ------------------------------------------------------------------ analysis
     def _components(self, rows):

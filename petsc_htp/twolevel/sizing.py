@@ -30,16 +30,6 @@ def dimension(coords_dim, nnz: int, n: int) -> int:
     return 3 if nnz > NNZ_PER_ROW_3D * max(n, 1) else 2
 
 
-def leaf_size(dim: int) -> int:
-    """Rows per leaf in ``dim`` dimensions."""
-    return LEAF[dim]
-
-
-def coarse(dim: int) -> str:
-    """The coarse space in ``dim`` dimensions."""
-    return COARSE[dim]
-
-
 def leaf_factor(dim: int) -> dict:
     """The leaf factor's PETSc options (under ``<prefix>htp_leaf_``) in ``dim`` dimensions."""
     return dict(FACTOR[dim])
