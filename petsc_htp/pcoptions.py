@@ -9,12 +9,13 @@ from . import checkpoint
 ORDERINGS = ("auto", "morton", "graph", "rcm", "natural", "metis")
 VARIANTS = ("paper", "twolevel")
 COARSE = ("auto", "const", "eig", "learned")
+COARSE_SOLVERS = ("auto", "lu", "gamg")
 FALLBACKS = ("none", "jacobi")
 FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
-                  "coarse_tol", "overlap")
+                  "coarse_tol", "overlap", "coarse_solver")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
@@ -32,6 +33,8 @@ HELP = {
                    "the network's r)",
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
+    "coarse_solver": "twolevel: auto (LU; in 3-D one GAMG V-cycle once the coarse operator has more than 16384 "
+                     "rows), lu (redundant on more than one rank) or gamg; -htp_cs_* options configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "form": "twolevel: auto (deflated, balanced under a KSP that needs a symmetric M), deflated (one coarse solve "
@@ -60,6 +63,7 @@ class HTPOptions:
     coarse_rank: int = 2
     coarse_checkpoint: str = ""
     coarse_tol: float = 0.0
+    coarse_solver: str = "auto"
     coarse_space_every: int = 1
     form: str = "auto"
     overlap: int = 0
@@ -82,6 +86,7 @@ class HTPOptions:
     def validate(self, opt: str = "-htp_") -> "HTPOptions":
         """Raise ValueError naming the first bad option."""
         for name, allowed in (("variant", VARIANTS), ("ordering", ORDERINGS), ("coarse", COARSE),
+                              ("coarse_solver", COARSE_SOLVERS),
                               ("fallback", FALLBACKS), ("form", FORMS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{opt}{name} {getattr(self, name)!r} unknown; use one of {', '.join(allowed)}")

@@ -87,7 +87,8 @@ class TwoLevel:
     def config(self) -> twolevelpc.Config:
         """The two-level configuration from the options."""
         o = self.opts
-        return twolevelpc.Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap)
+        return twolevelpc.Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap,
+                                 o.coarse_solver)
 
     def analyse(self, mat, A, coords):
         """Leaves, index maps, components and every matrix with its pattern (see :class:`twolevelpc.TwoLevelPC`)."""

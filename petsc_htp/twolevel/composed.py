@@ -63,6 +63,8 @@ class Config:
         auto (deflated, or balanced under a KSP that needs a symmetric M), deflated or balanced.
     overlap : int
         0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).
+    solver : str
+        Coarse solver: lu, gamg or auto (by the coarse operator's size and dimension).
     """
 
     leaf: int = 0
@@ -72,6 +74,7 @@ class Config:
     tol: float = 0.0
     form: str = "auto"
     overlap: int = 0
+    solver: str = "auto"
 
 
 class _Collective:
@@ -423,7 +426,8 @@ class TwoLevelPC:
         if self.col_block > 1:                      # block LU kernels: a third faster to factor and to apply
             self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
-            defaults = sizing.coarse_factor(self.dim, self.coll.size > 1)
+            self.solver = self.cfg.solver if self.cfg.solver != "auto" else sizing.coarse_solver(self.dim, self.m)
+            defaults = sizing.coarse_options(self.dim, self.coll.size > 1, self.solver)
             if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.coarse = _pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
@@ -581,9 +585,7 @@ class TwoLevelPC:
         mats = [m for m in (self.W, self.C, self.E, self.F, self.AW) if m is not None]
         if self.S is not None:
             mats += [self.S, self.S_factor.getFactorMatrix()]
-        held = sum(m.getInfo()["nz_used"] for m in mats) + self.leafsolver.nnz()
-        if self.coarse.getType() != "redundant":
-            held += self.coarse.getFactorMatrix().getInfo()["nz_used"]
+        held = sum(m.getInfo()["nz_used"] for m in mats) + self.leafsolver.nnz() + _held(self.coarse)
         return int(8 * held)
 
     def describe(self) -> list:
@@ -602,12 +604,27 @@ class TwoLevelPC:
                    if self.extra else "")
                 + f"; global size {self.m}, {self.null_components} null component(s) left out"
                 + (f"; space kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago" if self.age else ""),
+                self._solver_text(),
                 f"form: {self.form()} (" + ("y = v - W E^-1 C^T v, v = B x; started so that W^T r0 = 0"
                                             if self.form() == "deflated" else "symmetric balanced form") + ")",
                 f"setup ms: analysis {self.analysis_ms:.1f} (once per pattern; leaves {lv.build_ms:.1f}); "
                 + ", ".join(f"{k.replace('_', ' ')} {v:.1f}" for k, v in t.items()),
                 "apply: float64 in PETSc (a linear operator to working precision: any KSP, any rtol)",
                 f"memory on this rank: {self.nbytes / max(n // self.coll.size, 1):.0f} bytes per unknown"]
+
+    def _solver_text(self) -> str:
+        """The coarse solver, and why it was chosen."""
+        kind = self.coarse.getType()
+        if kind in ("gamg", "mg"):
+            text = f"one {kind.upper()} V-cycle ({self.coarse.getMGLevels()} levels)"
+        elif kind == "redundant":
+            text = f"LU on each of the {self.coll.size} ranks (redundant)"
+        else:
+            text = kind.upper() if kind in ("lu", "icc", "ilu") else kind
+        limit = sizing.COARSE_DIRECT_MAX[self.dim]
+        why = (f" (by the problem: {self.m} rows; " + (f"direct up to {limit}" if limit else "always direct")
+               + f" in {self.dim}-D)" if self.cfg.solver == "auto" else "")
+        return f"coarse solve: {text}{why}; options -{self.coarse_prefix}*"
 
     def destroy(self):
         """Free every PETSc object (also of a construction that failed part of the way)."""
@@ -621,6 +638,20 @@ class TwoLevelPC:
                 obj.destroy()
                 setattr(self, name, None)
         self.leafsolver = None
+
+
+def _held(pc) -> int:
+    """Values a coarse solver holds on this rank besides its operator: a factor's, or a multigrid hierarchy's
+    coarser operators and interpolations (0 for other PC types, such as PCREDUNDANT's gathered copy)."""
+    kind = pc.getType()
+    if kind in ("lu", "cholesky", "icc", "ilu"):
+        return int(pc.getFactorMatrix().getInfo()["nz_used"])
+    if kind not in ("gamg", "mg"):
+        return 0
+    levels = pc.getMGLevels()
+    mats = [pc.getMGSmoother(level).getOperators()[0] for level in range(levels - 1)]
+    mats += [pc.getMGInterpolation(level) for level in range(1, levels)]
+    return int(sum(m.getInfo()["nz_used"] for m in mats))
 
 
 def _folded_block(rows, start, n) -> sp.csr_matrix:

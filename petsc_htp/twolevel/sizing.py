@@ -7,7 +7,9 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
   coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD.
 
-The coarse LU runs redundantly on every rank of a parallel matrix (PCREDUNDANT).
+The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
+is small; a 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
+(N/64 rows at N in the millions), gets one GAMG V-cycle instead (defaults sweep over coarse solvers).
 
 PETSc-free (the fast path imports it).
 """
@@ -20,6 +22,8 @@ EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural",
 FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
+COARSE_DIRECT_MAX = {2: None, 3: 16384}     # coarse rows above which GAMG replaces the LU (None: never)
+COARSE_AMG = {"pc_type": "gamg", "pc_gamg_reuse_interpolation": "true"}
 
 
 def dimension(coords_dim, nnz: int, n: int) -> int:
@@ -35,7 +39,16 @@ def leaf_factor(dim: int) -> dict:
     return dict(FACTOR[dim])
 
 
-def coarse_factor(dim: int, parallel: bool) -> dict:
-    """The coarse solver's PETSc options (under ``<prefix>htp_cs_``) in ``dim`` dimensions."""
+def coarse_solver(dim: int, rows: int) -> str:
+    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions."""
+    limit = COARSE_DIRECT_MAX[dim]
+    return "gamg" if limit is not None and rows > limit else "lu"
+
+
+def coarse_options(dim: int, parallel: bool, solver: str) -> dict:
+    """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
+    'gamg' (one V-cycle, its interpolation kept across numeric setups) in ``dim`` dimensions."""
+    if solver == "gamg":
+        return dict(COARSE_AMG)
     opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": COARSE_ORDERING[dim]}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts

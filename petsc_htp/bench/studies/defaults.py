@@ -1,8 +1,9 @@
-"""Defaults by time: the two-level variant over leaf size, coarse rank, overlap and form, in sequence mode.
+"""Defaults by time: the two-level variant over leaf size, coarse rank, overlap, form and coarse solver, in
+sequence mode.
 
 Every configuration is ``cg_twolevel_eig`` (or ``cg_twolevel_const``) with ``-htp_leaf L -htp_coarse_rank r
--htp_overlap k -htp_form f -htp_coarse_tol 0`` and a leaf factorisation (``-htp_leaf_pc_type``: cholesky,
-exact, or icc) and solves the sequence study's frames (:mod:`.sequence`, methods interleaved frame by
+-htp_overlap k -htp_form f -htp_coarse_tol 0``, a leaf factorisation (``-htp_leaf_pc_type``: cholesky,
+exact, or icc) and a coarse solver (``-htp_coarse_solver``: lu or gamg) and solves the sequence study's frames (:mod:`.sequence`, methods interleaved frame by
 frame). Configurations are ranked by the geometric mean over N of their median ms per frame relative to the
 fastest configuration at that N; the default is the first whose every frame (the first included) took at
 most :data:`ITERATION_BAR` CG iterations (35 in 2-D, 40 in 3-D).
@@ -28,31 +29,39 @@ LEAF_PCS = Size("defaults_leaf_pcs", ["cholesky"], ["cholesky"],
                 "leaf factorisations of the defaults sweep: cholesky (exact) and/or icc", kind=str)
 FORMS = Size("defaults_forms", ["deflated", "balanced"], ["deflated", "balanced"], "forms of the defaults sweep",
              kind=str)
+COARSE_SOLVERS = Size("defaults_coarse_solvers", ["lu"], ["lu"], "coarse solvers of the defaults sweep: lu and/or gamg",
+                      kind=str)
 ITERATION_BAR = {2: 35, 3: 40}     # the most CG iterations a default may take on any frame, by dimension
 
 
-def configurations(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced")) -> list:
-    """Every (name, coarse, L, r, overlap, form, leaf PC) of the sweep: eig at every r, const once per L."""
+def configurations(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced"),
+                   solvers=("lu",)) -> list:
+    """Every (name, coarse, L, r, overlap, form, leaf PC, coarse solver) of the sweep: eig at every r > 1 (r = 1
+    is const), const once per L."""
     out = []
-    for pc in leaf_pcs:
-        tail = "" if pc == "cholesky" else f" {pc}"
-        for L in leaves:
-            for ov in overlaps:
-                for form in forms:
-                    out += [(f"eig L{L} r{r} ov{ov} {form}{tail}", "eig", L, r, ov, form, pc) for r in ranks]
-                    out.append((f"const L{L} ov{ov} {form}{tail}", "const", L, 1, ov, form, pc))
+    for solver in solvers:
+        for pc in leaf_pcs:
+            tail = ("" if pc == "cholesky" else f" {pc}") + ("" if solver == "lu" else f" {solver}")
+            for L in leaves:
+                for ov in overlaps:
+                    for form in forms:
+                        out += [(f"eig L{L} r{r} ov{ov} {form}{tail}", "eig", L, r, ov, form, pc, solver)
+                                for r in ranks if r > 1]
+                        out.append((f"const L{L} ov{ov} {form}{tail}", "const", L, 1, ov, form, pc, solver))
     return out
 
 
-def sweep_methods(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced")) -> list:
+def sweep_methods(leaves, ranks, overlaps, leaf_pcs=("cholesky",), forms=("deflated", "balanced"),
+                  solvers=("lu",)) -> list:
     """The sweep's configurations as benchmark methods."""
     from ..methods import Method, resolve_method
 
     base = {"eig": resolve_method("cg_twolevel_eig"), "const": resolve_method("cg_twolevel_const")}
     out = []
-    for name, coarse, L, r, ov, form, pc in configurations(leaves, ranks, overlaps, leaf_pcs, forms):
+    for name, coarse, L, r, ov, form, pc, solver in configurations(leaves, ranks, overlaps, leaf_pcs, forms,
+                                                                    solvers):
         extra = (("htp_leaf", str(L)), ("htp_overlap", str(ov)), ("htp_form", form), ("htp_coarse_tol", "0"),
-                 ("htp_leaf_pc_type", pc))
+                 ("htp_leaf_pc_type", pc), ("htp_coarse_solver", solver))
         extra += (("htp_coarse_rank", str(r)),) if coarse == "eig" else ()
         out.append(Method(name.replace(" ", "_"), base[coarse].path, extra))
     return out
@@ -120,6 +129,23 @@ def forms(res) -> str:
                      "thin products"], lines, left=2)
 
 
+def solvers(res) -> str:
+    """The picked configuration with each coarse solver swept, N by N: median ms per frame (mean iterations)."""
+    pick, names = chosen(res), res.meta.get("defaults", {}).get("solvers", ["lu"])
+    if not pick or len(names) < 2:
+        return ""
+    by, scales, _, _ = table(res)
+    base = pick.removesuffix("_gamg")
+    rows = []
+    for solver in names:
+        m = base + ("" if solver == "lu" else f"_{solver}")
+        rows.append([solver] + [f"{ms(by[(m, n)]['total_ms']['median'])} ({its(by[(m, n)]['iterations']['mean'])})"
+                                if (m, n) in by else "—" for n in scales])
+    return ("The picked configuration with each coarse solver, N by N (`-htp_coarse_solver auto` takes the LU up "
+            "to a coarse size and GAMG above it, `petsc_htp.twolevel.sizing.COARSE_DIRECT_MAX`):\n\n"
+            + md_table(["Coarse solver of " + _label(base)] + [f"N={n_label(n)}: ms (its)" for n in scales], rows))
+
+
 def chart(res, out) -> str:
     """ms per frame against mean iterations of every configuration, one panel per N; the front joined."""
     by, scales, order, _ = table(res)
@@ -148,18 +174,19 @@ class Defaults(Study):
 
     name = "defaults"
     help = "defaults by time: two-level leaf size, coarse rank, overlap and form in sequence mode; the front"
-    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS, LEAF_PCS, FORMS, DIM)
+    sizes = (SCALES, FRAMES, LEAVES, RANKS, OVERLAPS, LEAF_PCS, FORMS, COARSE_SOLVERS, DIM)
     readme_links = ((CHART, "defaults sweep"),)
 
     def meta(self, settings):
         return {"defaults": {k: settings[s.name] for k, s in (("scales", SCALES), ("frames", FRAMES),
                                                                 ("leaves", LEAVES), ("ranks", RANKS),
                                                                 ("overlaps", OVERLAPS), ("leaf_pcs", LEAF_PCS),
-                                                                ("forms", FORMS), ("dim", DIM))}}
+                                                                ("forms", FORMS), ("solvers", COARSE_SOLVERS),
+                                                                ("dim", DIM))}}
 
     def _methods(self, s):
         return sweep_methods(s["defaults_leaves"], s["defaults_ranks"], s["defaults_overlaps"],
-                             s["defaults_leaf_pcs"], s["defaults_forms"])
+                             s["defaults_leaf_pcs"], s["defaults_forms"], s["defaults_coarse_solvers"])
 
     def expected_solves(self, ctx):
         s = ctx.settings
@@ -179,8 +206,9 @@ class Defaults(Study):
             "## Defaults by time (two-level variant)",
             f"{meta.get('dim', 2)}-D scenes: `cg_twolevel_eig` at leaf sizes {meta.get('leaves')}, coarse ranks "
             f"{meta.get('ranks')}, overlaps {meta.get('overlaps')}, leaf factorisations "
-            f"{meta.get('leaf_pcs', ['cholesky'])} and forms {meta.get('forms', ['deflated', 'balanced'])}, and `cg_twolevel_const` at each leaf size, "
-            f"overlap, factorisation and form (`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} "
+            f"{meta.get('leaf_pcs', ['cholesky'])}, forms {meta.get('forms', ['deflated', 'balanced'])} and coarse "
+            f"solvers {meta.get('solvers', ['lu'])}, and `cg_twolevel_const` at each leaf size, "
+            f"overlap, factorisation, form and coarse solver (`-htp_coarse_tol 0`), in sequence mode ({meta.get('frames', '?')} "
             "frames per N, configurations "
             "interleaved frame by frame). Median ms per frame (setup + solve) after the first frame, mean "
             "iterations, the most iterations on any frame; ranked by the geometric mean over N of the time "
@@ -192,6 +220,7 @@ class Defaults(Study):
             "one leaf solve, one coarse solve and two thin products; the balanced one: a second coarse solve "
             "and three more thin products):",
             forms(res),
+            *filter(None, [solvers(res)]),
             image(CHART, "Defaults sweep"),
         ])
 
