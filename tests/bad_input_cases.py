@@ -242,6 +242,10 @@ def case_unknown_coarse():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse": "fancy"})[0]
 
 
+def case_unknown_coarse_solver():
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse_solver": "mumps"})[0]
+
+
 def main():
     for name, fn in sorted((k, v) for k, v in globals().items() if k.startswith("case_")):
         try:

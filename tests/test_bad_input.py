@@ -39,6 +39,7 @@ EXPECTED = {
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
     "unknown_coarse": r"error: -htp_coarse 'fancy' unknown; use one of auto, const, eig, learned",
+    "unknown_coarse_solver": r"error: -htp_coarse_solver 'mumps' unknown; use one of auto, lu, gamg",
 }
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2")}

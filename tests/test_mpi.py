@@ -58,6 +58,19 @@ def test_twolevel_coarse_space_is_global_across_ranks():
     assert size[1] == size[2] >= 32 * 4 - 1, size                  # the same leaves keep the same vectors
 
 
+def test_gamg_coarse_solver_on_two_ranks():
+    """-htp_coarse_solver gamg: the coarse operator, distributed, gets one GAMG V-cycle on both ranks."""
+    its = {}
+    for solver in ("lu", "gamg"):
+        code, out = mpirun("-options_file", "options/cg_htp.opts", "-n", 4096, "-htp_coarse_solver", solver,
+                           "-ksp_view")
+        assert code == 0, out
+        assert re.search(r"^converged reason: CONVERGED_RTOL$", out, re.M), out
+        its[solver] = int(re.search(r"^iterations: (\d+)$", out, re.M).group(1))
+    assert "coarse solve: one GAMG V-cycle" in out
+    assert its["lu"] <= its["gamg"] <= its["lu"] + 6, its
+
+
 def test_3d_bench_on_two_ranks(tmp_path):
     """``mpiexec -n 2 petsc-htp bench --dim 3``: PETSc methods on both ranks, pyamg and AMGCL on rank 0, one
     results folder, peak RSS on every row."""

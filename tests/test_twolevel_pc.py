@@ -427,3 +427,30 @@ def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
     with pytest.raises(PETSc.Error) as err:
         solve(mat, cube.b, **opts)
     assert message in str(err.value.__cause__)
+
+
+def test_coarse_solver_by_the_problem():
+    assert sizing.coarse_solver(2, 10 ** 7) == "lu"
+    limit = sizing.COARSE_DIRECT_MAX[3]
+    assert (sizing.coarse_solver(3, limit), sizing.coarse_solver(3, limit + 1)) == ("lu", "gamg")
+    assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"
+    assert sizing.coarse_options(3, True, "gamg")["pc_type"] == "gamg"
+
+
+def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):
+    """One GAMG V-cycle in place of the coarse LU: a few more iterations, the same accuracy; -ksp_view names it
+    and the memory line counts its hierarchy."""
+    mat = petsc_mat(cube.A)
+    petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
+    _, lu_its, _, ksp = solve(mat, cube.b)
+    setup = ksp.getPC().getPythonContext().setup
+    assert setup.coarse.getType() == "lu" and "by the problem: 64 rows; direct up to" in setup._solver_text()
+    reason, its, relres, ksp = solve(mat, cube.b, htp_coarse_solver="gamg")
+    setup = ksp.getPC().getPythonContext().setup
+    assert reason > 0 and relres <= 1.01e-8 and lu_its <= its <= lu_its + 6, (lu_its, its)
+    assert setup.coarse.getType() == "gamg" and setup.nbytes > 0
+    viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
+    ksp.view(viewer)
+    viewer.destroy()
+    text = (tmp_path / "view.txt").read_text()
+    assert "coarse solve: one GAMG V-cycle" in text and "by the problem" not in text.split("coarse solve:")[1][:80]

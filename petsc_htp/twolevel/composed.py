@@ -423,10 +423,11 @@ class TwoLevelPC:
         self.E.setDiagonal(lift, addv=PETSc.InsertMode.ADD_VALUES)
         diag.destroy()
         self._lift = lift
-        if self.col_block > 1:                      # block LU kernels: a third faster to factor and to apply
-            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
             self.solver = self.cfg.solver if self.cfg.solver != "auto" else sizing.coarse_solver(self.dim, self.m)
+        if self.col_block > 1 and self.solver == "lu":     # block LU kernels: a third faster to factor and to apply
+            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
+        if first:
             defaults = sizing.coarse_options(self.dim, self.coll.size > 1, self.solver)
             if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}

@@ -23,7 +23,7 @@ FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_DIRECT_MAX = {2: None, 3: 16384}     # coarse rows above which GAMG replaces the LU (None: never)
-COARSE_AMG = {"pc_type": "gamg", "pc_gamg_reuse_interpolation": "true"}
+COARSE_AMG = {"pc_type": "gamg"}
 
 
 def dimension(coords_dim, nnz: int, n: int) -> int:
@@ -47,7 +47,8 @@ def coarse_solver(dim: int, rows: int) -> str:
 
 def coarse_options(dim: int, parallel: bool, solver: str) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
-    'gamg' (one V-cycle, its interpolation kept across numeric setups) in ``dim`` dimensions."""
+    'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
+    saves) in ``dim`` dimensions."""
     if solver == "gamg":
         return dict(COARSE_AMG)
     opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": COARSE_ORDERING[dim]}
