@@ -23,7 +23,7 @@ FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_DIRECT_MAX = {2: None, 3: 16384}     # coarse rows above which GAMG replaces the LU (None: never)
-COARSE_AMG = {"pc_type": "gamg"}
+COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 
 
 def dimension(coords_dim, nnz: int, n: int) -> int:
