@@ -24,8 +24,8 @@ HELP = {
     "ordering": "auto (Morton with coordinates, else RCM for paper and graph for twolevel), morton, rcm, natural, "
                 "graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's graph, METIS when "
                 "that graph is not 2-D-like) or metis (twolevel)",
-    "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D, 64 in 3-D); the paper's leaf size is the "
-            "network's",
+    "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
+            "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D), const (r=1), eig "
               "(local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
@@ -33,7 +33,7 @@ HELP = {
                    "the network's r)",
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
-    "coarse_solver": "twolevel: auto (LU; in 3-D one GAMG V-cycle once the coarse operator has more than 16384 "
+    "coarse_solver": "twolevel: auto (LU; in 3-D one GAMG V-cycle once the coarse operator has more than 8192 "
                      "rows), lu (redundant on more than one rank) or gamg; -htp_cs_* options configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",

@@ -435,6 +435,9 @@ def test_coarse_solver_by_the_problem():
     assert (sizing.coarse_solver(3, limit), sizing.coarse_solver(3, limit + 1)) == ("lu", "gamg")
     assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"
     assert sizing.coarse_options(3, True, "gamg")["pc_type"] == "gamg"
+    big = (limit + 1) * sizing.LEAF[3]                       # its coarse operator at the usual leaf size: AMG
+    assert (sizing.leaf_size(3, limit * sizing.LEAF[3]), sizing.leaf_size(3, big)) == (64, sizing.LEAF_AMG[3])
+    assert sizing.leaf_size(2, 10 ** 8) == 32
 
 
 def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):

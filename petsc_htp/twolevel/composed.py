@@ -195,7 +195,7 @@ class TwoLevelPC:
 
     def resolved(self, cfg) -> Config:
         """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
-        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.LEAF[self.dim],
+        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.mat.getSize()[0]),
                                    coarse=sizing.COARSE[self.dim] if cfg.coarse == "auto" else cfg.coarse)
 
     # ------------------------------------------------------------------ analysis

@@ -93,7 +93,8 @@ class ExactLeaves:
         return int(self.f.values.size + self.f.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> str:
-        return f"exact solves by one factor of the leaf blocks per rank ({self.f.pc.getType()})"
+        kind = "exact solves" if self.exact else "incomplete-factor solves"
+        return f"{kind} by one factor of the leaf blocks per rank ({self.f.pc.getType()})"
 
     def destroy(self):
         self.f.destroy()
