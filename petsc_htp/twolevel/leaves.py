@@ -162,6 +162,9 @@ def _block_cuts(level, leaf, width):
     return cuts if n - cuts[-1] <= leaf + width else None
 
 
+RECURSIVE_PARTS = 64       # METIS by recursive bisection above this many parts (see metis_leaves)
+
+
 def _metis_graph(A):
     """xadj, adjncy of the symmetric graph of ``A`` without self loops."""
     C = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
@@ -183,9 +186,11 @@ def _within_parts_rcm(A, parts):
 
 
 def metis_leaves(A, leaf=128, seed=0) -> Leaves:
-    """METIS k-way parts of A's graph, ceil(n / leaf) of them, as leaves.
+    """METIS parts of A's graph, ceil(n / leaf) of them, as leaves.
 
-    The partition is deterministic for a given ``seed``; empty parts are dropped and
+    Over :data:`RECURSIVE_PARTS` parts by recursive bisection, whose time grows with log(parts) where k-way's
+    grows with the parts (a bare 3-D 32^3 matrix into 512 leaves: 169 against 389 ms, 35 against 33 CG
+    iterations); fewer parts k-way, whose leaves are better (2-D FEM, 20 parts: 35 against 39). The partition is deterministic for a given ``seed``; empty parts are dropped and
     the rows of a part are in the reverse Cuthill-McKee order of the part's own graph, so
     that position within a leaf is a smooth coordinate whatever the given row order.
     """
@@ -200,7 +205,8 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
         parts = np.zeros(n, dtype=np.int64)
     else:
         _, parts = pymetis.part_graph(nparts, pymetis.CSRAdjacency(*_metis_graph(A)),
-                                      options=pymetis.Options(seed=int(seed)))
+                                      options=pymetis.Options(seed=int(seed)),
+                                      recursive=nparts > RECURSIVE_PARTS)
         parts = np.asarray(parts, dtype=np.int64)
     perm = np.lexsort((_within_parts_rcm(A, parts), parts))
     sizes = np.bincount(parts, minlength=nparts)
