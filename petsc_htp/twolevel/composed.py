@@ -37,6 +37,7 @@ from .leaflayout import layout
 from .leafsolvers import ExactLeaves, OverlappingLeaves, seqaij
 from .leaves import choose_leaves
 
+FACTOR_PCS = ("lu", "cholesky", "icc", "ilu")       # PC types that hold a factor
 SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
 COARSE_TEXT = {"const": "the constant of each piece of each leaf",
                "eig": "piece constants and one inverse-iteration step of each leaf's Neumann matrix from smooth seeds",
@@ -292,6 +293,7 @@ class TwoLevelPC:
         self.C = self.E = self.F = self.AW = self.Eb = None
         self.coarse_prefix = prefix + "cs_"
         self.coarse = None
+        self.solver = self.cfg.solver if self.cfg.solver != "auto" else sizing.coarse_solver(self.dim, self.m)
         self.v, self.t = self.mat.createVecLeft(), self.mat.createVecLeft()
 
     # ------------------------------------------------------------------ numeric
@@ -423,8 +425,6 @@ class TwoLevelPC:
         self.E.setDiagonal(lift, addv=PETSc.InsertMode.ADD_VALUES)
         diag.destroy()
         self._lift = lift
-        if first:
-            self.solver = self.cfg.solver if self.cfg.solver != "auto" else sizing.coarse_solver(self.dim, self.m)
         if self.col_block > 1 and self.solver == "lu":     # block LU kernels: a third faster to factor and to apply
             self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
@@ -621,10 +621,12 @@ class TwoLevelPC:
         elif kind == "redundant":
             text = f"LU on each of the {self.coll.size} ranks (redundant)"
         else:
-            text = kind.upper() if kind in ("lu", "icc", "ilu") else kind
-        limit = sizing.COARSE_DIRECT_MAX[self.dim]
-        why = (f" (by the problem: {self.m} rows; " + (f"direct up to {limit}" if limit else "always direct")
-               + f" in {self.dim}-D)" if self.cfg.solver == "auto" else "")
+            text = kind.upper() if kind in FACTOR_PCS else kind
+        why = ""
+        if self.cfg.solver == "auto":
+            limit = sizing.COARSE_DIRECT_MAX[self.dim]
+            direct = f"direct up to {limit}" if limit else "always direct"
+            why = f" (by the problem: {self.m} rows; {direct} in {self.dim}-D)"
         return f"coarse solve: {text}{why}; options -{self.coarse_prefix}*"
 
     def destroy(self):
@@ -645,7 +647,7 @@ def _held(pc) -> int:
     """Values a coarse solver holds on this rank besides its operator: a factor's, or a multigrid hierarchy's
     coarser operators and interpolations (0 for other PC types, such as PCREDUNDANT's gathered copy)."""
     kind = pc.getType()
-    if kind in ("lu", "cholesky", "icc", "ilu"):
+    if kind in FACTOR_PCS:
         return int(pc.getFactorMatrix().getInfo()["nz_used"])
     if kind not in ("gamg", "mg"):
         return 0

@@ -190,8 +190,8 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
 
     Over :data:`RECURSIVE_PARTS` parts by recursive bisection, whose time grows with log(parts) where k-way's
     grows with the parts (a bare 3-D 32^3 matrix into 512 leaves: 169 against 389 ms, 35 against 33 CG
-    iterations); fewer parts k-way, whose leaves are better (2-D FEM, 20 parts: 35 against 39). The partition is deterministic for a given ``seed``; empty parts are dropped and
-    the rows of a part are in the reverse Cuthill-McKee order of the part's own graph, so
+    iterations); fewer parts k-way, whose leaves are better (2-D FEM, 20 parts: 35 against 39). The
+    partition is deterministic for a given ``seed``; empty parts are dropped and the rows of a part are in the reverse Cuthill-McKee order of the part's own graph, so
     that position within a leaf is a smooth coordinate whatever the given row order.
     """
     import pymetis

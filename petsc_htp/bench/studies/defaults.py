@@ -135,7 +135,9 @@ def solvers(res) -> str:
     if not pick or len(names) < 2:
         return ""
     by, scales, _, _ = table(res)
-    base = pick.removesuffix("_gamg")
+    base = pick
+    for solver in names:
+        base = base.removesuffix(f"_{solver}")
     rows = []
     for solver in names:
         m = base + ("" if solver == "lu" else f"_{solver}")
