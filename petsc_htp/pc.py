@@ -160,6 +160,8 @@ class HTPPC:
         new = (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
                or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
                        and _same_array(nonzero, self._csr[2])))
+        if not new:
+            new = self.variant.moved(self.analysis, A)             # values that call for new leaves
         if _any_rank(P, new):
             check_symmetry(P)
             variant = self.variant

@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields
 
 from . import checkpoint
 
-ORDERINGS = ("auto", "morton", "graph", "rcm", "natural", "metis")
+ORDERINGS = ("auto", "aggregation", "morton", "graph", "rcm", "natural", "metis")
 VARIANTS = ("paper", "twolevel")
 COARSE = ("auto", "const", "eig", "learned")
 COARSE_SOLVERS = ("auto", "lu", "gamg")
@@ -15,15 +15,16 @@ FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
-                  "coarse_tol", "overlap", "coarse_solver")
+                  "coarse_tol", "overlap", "coarse_solver", "direct_max")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
     "checkpoint": "HTP checkpoint file (empty: the shipped petsc_htp/checkpoints/htp_default.pt)",
     "device": "torch device for the network and the apply: cpu, cuda[:k] or auto",
-    "ordering": "auto (Morton with coordinates, else RCM for paper and graph for twolevel), morton, rcm, natural, "
-                "graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's graph, METIS when "
-                "that graph is not 2-D-like) or metis (twolevel)",
+    "ordering": "auto (Morton with coordinates, else RCM for paper and aggregation for twolevel), aggregation "
+                "(twolevel: aggregates of aggregates of A's strong couplings; their size follows the graph), morton, "
+                "rcm, natural, graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's "
+                "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D), const (r=1), eig "
@@ -41,6 +42,9 @@ HELP = {
             "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
     "overlap": "twolevel: 0 for exact leaf solves, k > 0 for additive Schwarz on leaves grown by k layers of "
                "neighbours within each rank (the forms then go through A W)",
+    "direct_max": "twolevel: up to this many rows on one rank, one sparse Cholesky factor of the whole matrix "
+                  "replaces the two-level method when no other twolevel option is set (-1: by measurement, "
+                  "petsc_htp.twolevel.sizing.DIRECT_MAX; 0: never)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
@@ -67,6 +71,7 @@ class HTPOptions:
     coarse_space_every: int = 1
     form: str = "auto"
     overlap: int = 0
+    direct_max: int = -1
     shift: float = 0.0
     spd_guard: bool = True
     threads: int = 1
@@ -98,10 +103,10 @@ class HTPOptions:
         if self.leaf == 1 or self.leaf < 0:
             raise ValueError(f"{opt}leaf must be 0 (by the problem) or >= 2, got {self.leaf}")
         for name, low in (("threads", 1), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1),
-                          ("overlap", 0)):
+                          ("overlap", 0), ("direct_max", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
-        if self.variant == "paper" and self.ordering in ("metis", "graph"):
+        if self.variant == "paper" and self.ordering in ("metis", "graph", "aggregation"):
             raise ValueError(f"{opt}ordering {self.ordering} needs {opt}variant twolevel (the paper's leaves are "
                              "contiguous blocks of one ordering)")
         return self

@@ -12,6 +12,8 @@ options prefix, with
 - ``presolve(setup, ksp, b, x, stale)``: called before each KSPSolve (``stale``: the setup is reused on
   an operator whose values changed since); returns the KSP's initial-guess flag when it changed it
   (restored after the solve), else None;
+- ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
+  the couplings, once the couplings moved);
 - ``destroy(analysis)``: free what the analysis and its setups hold;
 - ``model``: a line naming the model, or None.
 
@@ -19,7 +21,8 @@ A new variant is one class here and its name in :data:`VARIANTS`.
 """
 from __future__ import annotations
 
-from .twolevel import coarsenet, composed as twolevelpc
+from .twolevel import coarsenet, composed as twolevelpc, sizing
+from .twolevel.direct import DirectPC
 from .checkpoint import DEFAULT
 from .paper.inference import HTP
 
@@ -65,6 +68,11 @@ class Paper:
         return None
 
     @staticmethod
+    def moved(analysis, A) -> bool:
+        """The analysis depends on the pattern only."""
+        return False
+
+    @staticmethod
     def destroy(analysis):
         """Nothing to free: torch tensors go with their Python objects."""
 
@@ -97,7 +105,18 @@ class TwoLevel:
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
+        if self.direct(mat):
+            return DirectPC(mat, A, self.config(), self.prefix + "htp_")
         return twolevelpc.TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+
+    def direct(self, mat) -> bool:
+        """Whether one sparse factor serves ``mat``: one rank, at most ``-htp_direct_max`` rows (by measurement
+        when -1), and no two-level option set."""
+        o = self.opts
+        limit = sizing.DIRECT_MAX if o.direct_max < 0 else o.direct_max
+        plain = (o.leaf, o.ordering, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank, o.form,
+                 o.coarse_space_every) == (0, "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
+        return mat.getComm().getSize() == 1 and mat.getSize()[0] <= limit and plain
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
@@ -105,6 +124,11 @@ class TwoLevel:
         analysis.cfg = analysis.resolved(self.config())
         analysis.numeric(A, density, keep_space=keep)
         return analysis
+
+    @staticmethod
+    def moved(analysis, A) -> bool:
+        """Whether the new values ``A`` moved away from the leaves (a new analysis follows them)."""
+        return analysis.moved(A)
 
     @staticmethod
     def apply(setup, x, y):

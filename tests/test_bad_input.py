@@ -25,7 +25,9 @@ EXPECTED = {
     "zero_diagonal": r"error: the matrix has missing or zero diagonal entries in 1 row\(s\), the first global row 1022;.*",
     "negative_diagonal": r"error: the matrix has negative diagonal entries in 1 row\(s\), the first global row 1022;.*",
     "nonsymmetric": r"error: the matrix is not symmetric \(random probe .*MAT_SYMMETRIC.*",
-    "indefinite": r"diverged DIVERGED_INDEFINITE_(MAT|PC)",
+    "indefinite": {1: r"error: HTPPC needs a symmetric positive \(semi\)definite matrix, but its Cholesky factor has "
+                      r"\d+ negative pivot\(s\) in 1024 rows: the matrix is indefinite",      # one factor: its inertia
+                   2: r"diverged DIVERGED_INDEFINITE_(MAT|PC)"},
     "nonsquare": r"error: HTPPC needs a square matrix, got 1024 x 1025 \(non-square\)",
     "empty_matrix": r"error: HTPPC got an empty matrix \(1024 x 1024 with no nonzeros\)",
     "rank_without_rows": {1: CONVERGED,

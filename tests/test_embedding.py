@@ -42,7 +42,7 @@ def test_grid_coordinates_decline_3d_and_disconnected_graphs():
 def test_graph_leaves_of_a_shuffled_grid_are_its_square_blocks():
     q = np.random.default_rng(0).permutation(64 * 64)
     A = grid_laplacian(64, 64)[q][:, q].tocsr()
-    lv = choose_leaves(A, leaf=64)
+    lv = choose_leaves(A, layout="graph", leaf=64)
     assert lv.kind == "graph" and np.all(lv.sizes == 64)
     ix, iy = (np.arange(4096) % 64)[q], (np.arange(4096) // 64)[q]
     for lo, hi in zip(lv.offsets[:-1], lv.offsets[1:]):

@@ -120,7 +120,7 @@ def test_metis_leaves_are_deterministic_parts_of_the_graph():
 def test_choose_leaves_layouts():
     fr = make_frame(1024, SEED)
     assert choose_leaves(fr.A, fr.coords).kind == "morton (given)"
-    assert choose_leaves(fr.A).kind == "graph"
+    assert choose_leaves(fr.A).kind == "aggregation" and choose_leaves(fr.A, layout="graph").kind == "graph"
     assert choose_leaves(fr.A, layout="metis").kind == "metis"
     assert choose_leaves(laplacian_3d(12), layout="graph").kind == "metis"        # not 2-D-like: METIS
     assert choose_leaves(fr.A, layout="rcm").kind == "rcm"
@@ -130,7 +130,7 @@ def test_choose_leaves_layouts():
     with pytest.raises(ValueError, match="coord"):
         choose_leaves(fr.A, layout="morton")
     with pytest.raises(ValueError, match="leaf"):
-        choose_leaves(fr.A, leaf=0)
+        choose_leaves(fr.A, layout="graph", leaf=0)
     with pytest.raises(ValueError, match="permutation"):
         Leaves(np.zeros(4, dtype=np.int64), np.array([0, 4]), "bad")
 
@@ -188,12 +188,12 @@ def test_iterations_far_below_jacobi():
 
 @pytest.mark.parametrize("layout", ["auto", "metis"])
 def test_leaves_of_a_shuffled_matrix_meet_the_iteration_bar(layout):
-    """A bare shuffled matrix: graph leaves recover the grid's blocks (Morton's iterations), METIS parts come close."""
+    """A bare shuffled matrix: aggregation leaves follow its couplings (Morton's iterations), METIS parts come close."""
     fr = make_frame(4096, SEED)
     q = np.random.default_rng(1).permutation(4096)
     A, b = sp.csr_matrix(fr.A[q][:, q]), fr.b[q]
     lv = choose_leaves(A, layout=layout)
-    assert lv.kind == ("graph" if layout == "auto" else "metis")
+    assert lv.kind == ("aggregation" if layout == "auto" else "metis")
     shuffled = pcg(A, b, setup(A, lv).apply, 1e-8).iterations
     morton = pcg(fr.A, fr.b, setup(fr.A, choose_leaves(fr.A, fr.coords)).apply, 1e-8).iterations
     assert shuffled <= 35 and morton <= 35 and morton <= shuffled + (2 if layout == "auto" else 0)

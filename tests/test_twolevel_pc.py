@@ -13,6 +13,7 @@ from petsc_htp.bench.studies.stability import problems as stability_problems  # 
 from petsc_htp.checks import min_rayleigh  # noqa: E402
 from petsc_htp.scenes.dataset import load_dataset  # noqa: E402
 from petsc_htp.twolevel import sizing  # noqa: E402
+from petsc_htp.twolevel.graphshape import GraphShape  # noqa: E402
 from petsc_htp.twolevel.leaves import choose_leaves  # noqa: E402
 from petsc_htp.methods import reason_name  # noqa: E402
 from petsc_htp.twolevel.batched import analyse, factor  # noqa: E402
@@ -75,7 +76,7 @@ def test_bare_permuted_matrix(frames, coarse):
         assert reason > 0 and relres <= 1.01e-8, reason_name(reason)
         assert its <= bars[coarse], its
         ctx = ksp.getPC().getPythonContext()
-        assert ctx.setup.leaves.kind == "graph"
+        assert ctx.setup.leaves.kind == "aggregation"
 
 
 def test_attached_geometry_uses_morton_leaves_and_no_more_iterations(frames):
@@ -390,7 +391,7 @@ def test_3d_frame_with_coordinates_and_bare(cube):
     reason, bare_its, relres, ksp = solve(petsc_mat(cube.A[p][:, p]), cube.b[p], htp_variant=None)
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1.01e-8 and bare_its <= 45
-    assert setup.leaves.kind == "metis" and (setup.dim, setup.cfg.coarse) == (3, "const")    # 7-point rows
+    assert setup.leaves.kind == "aggregation" and (setup.dim, setup.cfg.coarse) == (3, "const")    # the graph is 3-D
 
 
 def test_3d_defaults_give_way_to_the_users_options(cube):
@@ -415,8 +416,9 @@ def test_2d_defaults(frames):
 
 
 def test_dimension_rule():
-    assert sizing.dimension(3, 5 * 100, 100) == 3 and sizing.dimension(2, 7 * 100, 100) == 2
-    assert sizing.dimension(None, 7 * 100, 100) == 3 and sizing.dimension(None, 5 * 100, 100) == 2
+    flat, deep = GraphShape(2, 1.7, 0.0), GraphShape(3, 2.4, 0.0)
+    assert sizing.dimension(3, flat) == 3 and sizing.dimension(2, deep) == 2       # coordinates win
+    assert sizing.dimension(None, deep) == 3 and sizing.dimension(None, flat) == 2
 
 
 @pytest.mark.parametrize("opts, message", [({"htp_variant": "paper"}, "-htp_variant paper is 2-D only"),

@@ -24,14 +24,26 @@ DESCRIPTION = {"pyamg": "pyamg classical (Ruge-Stueben) AMG, one V-cycle precond
                "pyamg_sa": "pyamg smoothed-aggregation AMG, one V-cycle preconditioning a NumPy CG",
                "amgcl": "AMGCL (pyamgcl 1.0): smoothed aggregation, SPAI0 smoothing, its CG; one cell pinned"}
 NAMES = tuple(DESCRIPTION)
+COARSE_SWEEP = "amgcl_ce"      # amgcl_ce<K>: AMGCL with coarse_enough K (its default is 3000)
 PCG_REASONS = {"converged": "CONVERGED_RTOL", "max_it": "DIVERGED_ITS", "nan": "DIVERGED_NANORINF",
                "indefinite_pc": "DIVERGED_INDEFINITE_PC", "indefinite_mat": "DIVERGED_INDEFINITE_MAT"}
 AMGCL_PRM = {"coarsening.type": "smoothed_aggregation", "relax.type": "spai0"}
 
 
+def is_external(name) -> bool:
+    """Whether ``name`` is an external solver: one of :data:`NAMES` or ``amgcl_ce<K>``."""
+    return name in NAMES or (name.startswith(COARSE_SWEEP) and name[len(COARSE_SWEEP):].isdigit())
+
+
+def _amgcl_prm(name) -> dict:
+    """AMGCL's parameters for ``amgcl`` or ``amgcl_ce<K>`` (coarse_enough K)."""
+    size = name[len(COARSE_SWEEP):] if name.startswith(COARSE_SWEEP) else ""
+    return {**AMGCL_PRM, **({"coarse_enough": int(size)} if size else {})}
+
+
 def missing(name) -> str | None:
     """Why ``name`` cannot run here (its package is not installed), or None."""
-    module = {"pyamg": "pyamg", "pyamg_sa": "pyamg", "amgcl": "pyamgcl"}[name]
+    module = "pyamgcl" if name.startswith("amgcl") else "pyamg"
     try:
         __import__(module)
     except ImportError as exc:
@@ -98,28 +110,28 @@ def pinned(A, b) -> tuple:
     return A.__class__((data, A.indices, A.indptr), shape=A.shape), rhs
 
 
-def _amgcl_once(A, b, rtol, maxit) -> dict:
+def _amgcl_once(A, b, rtol, maxit, prm) -> dict:
     import pyamgcl
 
     t0 = time.perf_counter()
     Ap, rhs = pinned(A, b)
-    solver = pyamgcl.solver(pyamgcl.amg(Ap, AMGCL_PRM), prm={"type": "cg", "tol": rtol, "maxiter": maxit})
+    solver = pyamgcl.solver(pyamgcl.amg(Ap, prm), prm={"type": "cg", "tol": rtol, "maxiter": maxit})
     t1 = time.perf_counter()
     x = np.asarray(solver(rhs))
     t2 = time.perf_counter()
     its = int(solver.iters)
     return {"setup_ms": 1e3 * (t1 - t0), "solve_ms": 1e3 * (t2 - t1), "iterations": its,
             "reason": "CONVERGED_RTOL" if its < maxit else "DIVERGED_ITS", "x": x, "ksp": "amgcl-cg",
-            "pc": "amgcl(sa, spai0)"}
+            "pc": f"amgcl(sa, spai0, coarse_enough {prm.get('coarse_enough', 3000)})"}
 
 
-def _amgcl_curve(A, b, rtol, maxit) -> dict:
+def _amgcl_curve(A, b, rtol, maxit, prm) -> dict:
     """AMGCL's hierarchy (one V-cycle) preconditioning the NumPy CG, for a residual history (pyamgcl keeps none)."""
     import pyamgcl
 
     t0 = time.perf_counter()
     Ap, rhs = pinned(A, b)
-    apply = _Stamped(pyamgcl.amg(Ap, AMGCL_PRM))
+    apply = _Stamped(pyamgcl.amg(Ap, prm))
     t1 = time.perf_counter()
     res = pcg(Ap, rhs, apply, rtol=rtol * np.linalg.norm(b) / np.linalg.norm(rhs), maxiter=maxit)
     t2 = time.perf_counter()
@@ -139,6 +151,6 @@ def solve(name, A, b, rtol, maxit, monitor=False) -> dict:
     why = missing(name)
     if why:
         raise RuntimeError(why)
-    if name == "amgcl":
-        return _amgcl_curve(A, b, rtol, maxit) if monitor else _amgcl_once(A, b, rtol, maxit)
+    if name.startswith("amgcl"):
+        return (_amgcl_curve if monitor else _amgcl_once)(A, b, rtol, maxit, _amgcl_prm(name))
     return _pyamg(name, A, b, rtol, maxit, monitor)

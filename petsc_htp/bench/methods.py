@@ -5,7 +5,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import methods
-from .external import NAMES as EXTERNAL
+from .external import is_external
 
 PYAMG = "pyamg"
 DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", "cg_paper",
@@ -33,9 +33,9 @@ class Method:
 
 
 def resolve_method(name) -> Method:
-    """A method from an external solver's name (pyamg, pyamg_sa, amgcl), a shipped or ``./options`` method name,
+    """A method from an external solver's name (pyamg, pyamg_sa, amgcl, amgcl_ce<K>), a shipped or ``./options`` method name,
     or a path to an ``.opts`` file."""
-    if name in EXTERNAL:
+    if is_external(name):
         return Method(name)
     path = methods.find(name)
     return Method(path.stem, path)

@@ -89,3 +89,23 @@ def time_bars(res, out, study, name, title) -> str:
     fps_lines(ax)
     ax.legend(fontsize=7, ncol=2)
     return save(fig, out, name)
+
+
+def foreign_bars(rows, methods, out, name) -> str:
+    """Grouped bars per case (and N): median setup + solve ms of each method, failures left blank (log axis)."""
+    by = cells(rows, "case", "n", "method")
+    keys = list(dict.fromkeys((r["case"], r["n"]) for r in rows))
+    color = colors(methods)
+    fig, ax = figure(2.0 + 0.9 * len(keys), 4.4)
+    ax = ax[0, 0]
+    width = 0.8 / max(len(methods), 1)
+    x = np.arange(len(keys))
+    for i, m in enumerate(methods):
+        total = np.array([value(by.get((c, n, m)), "total_ms", "median") for c, n in keys])
+        ax.bar(x - 0.4 + (i + 0.5) * width, total, width, color=color[m], label=m)
+    ax.set_yscale("log")
+    ax.set_xticks(x, [f"{c}\n{n}" for c, n in keys], rotation=30, ha="right", fontsize=7)
+    ax.set_ylabel("setup + solve ms (median)")
+    ax.set_title("Matrices from other programs: one solve, fresh KSP")
+    ax.legend(fontsize=7, ncol=2)
+    return save(fig, out, name)

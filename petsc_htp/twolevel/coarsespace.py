@@ -49,12 +49,16 @@ def lift(diag):
     return (diag == 0) * scale
 
 
-def piece_constants(lay) -> torch.Tensor:
-    """(K, Lmax, c): every piece's normalised constant in column (its index within the leaf), c the most pieces."""
+def piece_constants(lay, index=None) -> torch.Tensor:
+    """(K, Lmax, c): every piece's normalised constant in column ``index`` (default: its index within the leaf;
+    a negative index: the piece has no column), c the most columns a leaf uses."""
     K, L = lay.shape
     pc = lay.pieces
-    P = torch.zeros(K * L, int(pc.count.max()), dtype=torch.float64)
-    P[torch.as_tensor(lay.pos), torch.as_tensor(pc.index)] = torch.as_tensor(1.0 / np.sqrt(pc.size[pc.label]))
+    index = pc.index if index is None else index[pc.label]
+    used = index >= 0
+    P = torch.zeros(K * L, int(index.max(initial=-1)) + 1, dtype=torch.float64)
+    P[torch.as_tensor(lay.pos[used]), torch.as_tensor(index[used])] = \
+        torch.as_tensor(1.0 / np.sqrt(pc.size[pc.label[used]]))
     return P.view(K, L, -1)
 
 

@@ -35,9 +35,12 @@ from . import coarsespace, nullspace, sizing
 from ..checks import rayleigh_reason
 from .leaflayout import layout
 from .leafsolvers import ExactLeaves, OverlappingLeaves, seqaij
+from .aggregation import THETA
+from .graphshape import graph_shape
 from .leaves import choose_leaves
 
 FACTOR_PCS = ("lu", "cholesky", "icc", "ilu")       # PC types that hold a factor
+WEAK_GROWTH = 2.0       # aggregation leaves are made anew once they hold this many times their weak couplings
 SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
 COARSE_TEXT = {"const": "the constant of each piece of each leaf",
                "eig": "piece constants and one inverse-iteration step of each leaf's Neumann matrix from smooth seeds",
@@ -131,7 +134,7 @@ def _scoped(prefix, defaults):
             db.delValue(name)
 
 
-def _pc(comm, mat, prefix, defaults) -> PETSc.PC:
+def configured_pc(comm, mat, prefix, defaults) -> PETSc.PC:
     """A PC on ``mat`` configured from ``defaults`` and, winning over them, the options under ``prefix``."""
     pc = PETSc.PC().create(comm)
     pc.setOptionsPrefix(prefix)
@@ -177,7 +180,9 @@ class TwoLevelPC:
         start, end = mat.getOwnershipRange()
         block = rows if self.coll.size == 1 else rows[:, start:end].tocsr()
         N = mat.getSize()[0]
-        self.dim = sizing.dimension(None if coords is None else coords.shape[1], self.coll.sum(rows.nnz), N)
+        self.shape = graph_shape(block) if coords is None else None
+        local = sizing.dimension(None if coords is None else coords.shape[1], self.shape)
+        self.dim = int(self.coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
         self.cfg = cfg = self.resolved(cfg)
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf)
@@ -192,7 +197,26 @@ class TwoLevelPC:
         self._matrices(rows, prefix)
         self.times, self.age, self.kept, self._forced, self._dense = {}, 0, None, None, None
         self.numeric_count = 0
+        self._d_rows = np.repeat(np.arange(self.lay.n), np.diff(self.lay.d_indptr))
+        self.weak_made = self._weak_inside(rows.data)
         self.analysis_ms = _ms(t0)
+
+    def _weak_inside(self, data) -> int:
+        """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
+        lay = self.lay
+        vals = np.abs(data[lay.d_src])
+        diag = vals[lay.d_diag]
+        off = (self._d_rows != lay.d_indices) & (vals != 0)
+        return int(np.count_nonzero(off & (vals < THETA * np.sqrt(diag[self._d_rows] * diag[lay.d_indices]))))
+
+    def moved(self, rows) -> bool:
+        """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
+        :data:`WEAK_GROWTH` times the weak couplings they held when made (plus 0.1 % of the rows), so leaves made
+        anew would follow the couplings better (a coefficient jump that moved; 5x on a DMDA frame with new
+        inclusions, which then takes 45 CG iterations against 26). Always False for other leaves."""
+        if self.lay.leaves.kind != "aggregation":
+            return False
+        return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n
 
     def resolved(self, cfg) -> Config:
         """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
@@ -243,20 +267,26 @@ class TwoLevelPC:
         return out
 
     def _columns(self):
-        """Coarse columns of every leaf (modes, extras, then one per piece), their global numbers and W's structure."""
+        """Coarse columns of every leaf (modes, extras, then one per piece but decoupled ones), their global numbers
+        and W's structure. A leaf of decoupled rows alone has no column."""
         lay, cfg = self.lay, self.cfg
         lv, pc = lay.leaves, lay.pieces
         self.q = 0 if cfg.coarse == "const" else (self.net.cfg.rank if cfg.coarse == "learned" else cfg.rank) - 1
         self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
         lead = self.q + self.extra
-        self.ncols = lead + pc.count
-        sizes = self.coll.max_array(np.array([self.ncols.max(), -self.ncols.min()]))
+        self.has_col = ~lay.decoupled
+        before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
+        index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)      # its column among its leaf's
+        count = np.bincount(pc.leaf[self.has_col], minlength=lv.n_leaves)
+        self.ncols = np.where(count > 0, lead + count, 0)
+        live = self.ncols[self.ncols > 0]
+        sizes = self.coll.max_array(np.array([live.max(initial=0), -live.min(initial=2 ** 40)]))
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
         self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
-        self.piece_col = self.leaf_col[pc.leaf] + lead + np.arange(pc.n_pieces) - pc.first[pc.leaf]
-        self.constants = coarsespace.piece_constants(lay)
+        self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
+        self.constants = coarsespace.piece_constants(lay, index)
         width = lead + self.constants.shape[2]
         per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
         row = np.repeat(np.arange(lay.n), per_row)
@@ -274,7 +304,8 @@ class TwoLevelPC:
         lay, comm = self.lay, self.comm
         n, N = lay.n, self.mat.getSize()[0]
         self.d_values = np.zeros(lay.d_src.size)
-        factor = lambda m: _pc(PETSc.COMM_SELF, m, prefix + "leaf_", sizing.leaf_factor(self.dim))     # noqa: E731
+        opts = sizing.leaf_factor(self.dim, lay.leaves.kind)
+        factor = lambda m: configured_pc(PETSc.COMM_SELF, m, prefix + "leaf_", opts)     # noqa: E731
         if self.cfg.overlap:
             self.leafsolver = OverlappingLeaves(lay, rows, self.cfg.overlap, factor)
         else:
@@ -317,7 +348,7 @@ class TwoLevelPC:
             self.age = 0
         else:
             self.age += 1
-        self._dropped = self.piece_col[drop[self.piece_offset:self.piece_offset + lay.pieces.n_pieces]]
+        self._dropped = self.piece_col[drop[self.piece_offset:self.piece_offset + lay.pieces.n_pieces] & self.has_col]
         values = self.w_values
         if self._dropped.size:
             values = values.copy()
@@ -431,7 +462,7 @@ class TwoLevelPC:
             defaults = sizing.coarse_options(self.dim, self.coll.size > 1, self.solver)
             if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
-            self.coarse = _pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
+            self.coarse = configured_pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
             self._coarse_defaults = defaults
             self.g, self.c, self.c2 = (self.E.createVecLeft() for _ in range(3))
 
@@ -598,8 +629,14 @@ class TwoLevelPC:
              else f"{kept.min()} per leaf")
         n = self.mat.getSize()[0]
         auto = f" ({' and '.join(self.auto)} by the problem: {self.dim}-D)" if self.auto else ""
-        return [f"leaves: {lv.kind}, L={cfg.leaf}{auto}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), sizes "
-                f"{lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces; {self.leafsolver.describe()}",
+        size = f"mean {lv.sizes.mean():.1f} rows" if lv.kind == "aggregation" else f"L={cfg.leaf}"
+        lone = self.coll.sum(int(lay.decoupled.sum()))
+        shape = [f"{self.shape.describe()} (this rank's rows)"] if self.shape is not None else []
+        return shape + [
+                f"leaves: {lv.kind}, {size}{auto}, {self.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), "
+                f"sizes {lv.sizes.min()}-{lv.max_size}; {self.n_pieces} pieces"
+                + (f", {lone} of them decoupled rows (no coarse vector)" if lone else "")
+                + f"; {self.leafsolver.describe()}",
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
                 + (f" (up to {self.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if self.extra else "")

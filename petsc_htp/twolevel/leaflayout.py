@@ -52,6 +52,9 @@ class LeafLayout:
         Pieces of the leaves (rows in the leaves' order).
     isolated : numpy.ndarray of bool (P,)
         Pieces with no nonzero coupling out of their leaf.
+    decoupled : numpy.ndarray of bool (P,)
+        Pieces that are one row with no nonzero off-diagonal entry at all (a Dirichlet row stored as an identity
+        row): the leaf solve is exact on them, so they get no coarse vector.
     """
 
     leaves: Leaves
@@ -69,6 +72,7 @@ class LeafLayout:
     o_src: np.ndarray
     pieces: Pieces
     isolated: np.ndarray
+    decoupled: np.ndarray
 
     @property
     def n(self) -> int:
@@ -125,4 +129,4 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     coupled = np.zeros(pieces.n_pieces, dtype=bool)
     coupled[pieces.label[iperm[entry_row[o_src]]]] = True
     return LeafLayout(leaves, start, perm, iperm, identity, leaf, pos, entry_row, d_indptr, d_cols, d_src, d_diag,
-                      o_src, pieces, ~coupled)
+                      o_src, pieces, ~coupled, ~coupled & (pieces.size == 1))

@@ -16,11 +16,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .aggregation import aggregates
 from .embedding import grid_coordinates
 from ..morton import quantized_morton_codes
 from ..ordering import _check_coords, _check_square, choose_ordering
 
-LAYOUTS = ("auto", "morton", "graph", "metis", "natural", "rcm")
+LAYOUTS = ("auto", "aggregation", "morton", "graph", "metis", "natural", "rcm")
 CUT_FACTOR = 2.5    # graph leaves cutting more than this / sqrt(leaf) of A's couplings fall back to METIS
 SLACK = 0.25        # a Morton leaf has leaf * (1 +- SLACK) rows
 
@@ -208,10 +209,16 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
                                       options=pymetis.Options(seed=int(seed)),
                                       recursive=nparts > RECURSIVE_PARTS)
         parts = np.asarray(parts, dtype=np.int64)
+    return part_leaves(A, parts, "metis", t0)
+
+
+def part_leaves(A, parts, kind, t0) -> Leaves:
+    """Leaves from the part of every row (empty parts dropped), each part's rows in the reverse Cuthill-McKee
+    order of its own graph; ``t0`` is when making them started (perf_counter)."""
     perm = np.lexsort((_within_parts_rcm(A, parts), parts))
-    sizes = np.bincount(parts, minlength=nparts)
+    sizes = np.bincount(parts)
     offsets = np.concatenate(([0], np.cumsum(sizes[sizes > 0])))
-    return Leaves(perm, offsets, "metis", (time.perf_counter() - t0) * 1e3)
+    return Leaves(perm, offsets, kind, (time.perf_counter() - t0) * 1e3)
 
 
 def _morton(A, coords, leaf, given_ok, kind, t0) -> Leaves:
@@ -240,9 +247,11 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     A : scipy.sparse matrix, shape (N, N)
     coords : array_like, shape (N, 2), optional
         Row coordinates (needed for 'morton').
-    layout : {'auto', 'morton', 'graph', 'metis', 'natural', 'rcm'}
+    layout : {'auto', 'aggregation', 'morton', 'graph', 'metis', 'natural', 'rcm'}
         'auto': Morton leaves (:func:`morton_leaves`) of ``coords`` when given (keeping an order that
-        already is Morton), else 'graph'. 'graph': Morton leaves of coordinates found in A's graph
+        already is Morton), else 'aggregation'. 'aggregation': aggregates of aggregates of A's strong
+        couplings (:mod:`petsc_htp.twolevel.aggregation`; their size follows the graph, ``leaf`` is not used).
+        'graph': Morton leaves of coordinates found in A's graph
         (:func:`petsc_htp.twolevel.embedding.grid_coordinates`), falling back to 'metis' when the graph is not
         2-D-like or the leaves cut more than ``CUT_FACTOR / sqrt(leaf)`` of A's couplings. 'metis': METIS
         parts of A's graph.
@@ -253,7 +262,15 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
         raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
     A = _check_square(A)
     t0 = time.perf_counter()
-    if layout == "graph" or (layout == "auto" and coords is None):
+    if layout == "aggregation" or (layout == "auto" and coords is None):
+        import os
+        if os.environ.get("NORCM"):
+            parts = aggregates(A)
+            perm = np.argsort(parts, kind="stable")
+            sizes = np.bincount(parts)
+            return Leaves(perm, np.concatenate(([0], np.cumsum(sizes[sizes > 0]))), "aggregation", (time.perf_counter() - t0) * 1e3)
+        return part_leaves(A, aggregates(A), "aggregation", t0)
+    if layout == "graph":
         xy = grid_coordinates(A)
         if xy is not None:
             leaves = _morton(A, xy, _positive_int(leaf, "leaf"), False, "graph", t0)

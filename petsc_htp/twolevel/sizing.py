@@ -3,6 +3,8 @@ factor and coarse solver.
 
 Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies defaults [--dim 3]``; README):
 
+- A bare matrix (no coordinates): aggregation leaves (:mod:`petsc_htp.twolevel.aggregation`), whose size follows
+  the graph, solved exactly; the dimension is what the graph shows (:mod:`petsc_htp.twolevel.graphshape`).
 - 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
@@ -18,9 +20,9 @@ PETSc-free (the fast path imports it).
 """
 from __future__ import annotations
 
+DIRECT_MAX = 2000          # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
-NNZ_PER_ROW_3D = 6.0       # a bare matrix whose rows hold more nonzeros on average is taken as 3-D (7-point)
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
 FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
@@ -30,12 +32,12 @@ LEAF_AMG = {3: 32}                          # default leaf size where the coarse
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 
 
-def dimension(coords_dim, nnz: int, n: int) -> int:
-    """2 or 3: the attached coordinates' dimension, else 3 for rows averaging more than
-    :data:`NNZ_PER_ROW_3D` nonzeros (``nnz`` of the whole ``n``-row matrix), else 2."""
+def dimension(coords_dim, shape) -> int:
+    """2 or 3: the attached coordinates' dimension, else what the graph showed (``shape``: a
+    :class:`~petsc_htp.twolevel.graphshape.GraphShape`)."""
     if coords_dim is not None:
         return 3 if int(coords_dim) == 3 else 2
-    return 3 if nnz > NNZ_PER_ROW_3D * max(n, 1) else 2
+    return shape.dim
 
 
 def leaf_size(dim: int, n: int) -> int:
@@ -44,9 +46,10 @@ def leaf_size(dim: int, n: int) -> int:
     return LEAF_AMG[dim] if coarse_solver(dim, n // leaf) == "gamg" else leaf
 
 
-def leaf_factor(dim: int) -> dict:
-    """The leaf factor's PETSc options (under ``<prefix>htp_leaf_``) in ``dim`` dimensions."""
-    return dict(FACTOR[dim])
+def leaf_factor(dim: int, kind: str) -> dict:
+    """The leaf factor's PETSc options (under ``<prefix>htp_leaf_``) in ``dim`` dimensions for leaves of ``kind``:
+    aggregation leaves (10-40 rows) are factored exactly in any dimension."""
+    return dict(EXACT_FACTOR if kind == "aggregation" else FACTOR[dim])
 
 
 def coarse_solver(dim: int, rows: int) -> str:

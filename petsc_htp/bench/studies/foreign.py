@@ -1,0 +1,244 @@
+"""Matrices from other programs (:mod:`petsc_htp.bench.foreigncases`): single solves and sequences.
+
+Single-solve mode: each case's first frame, a fresh Mat (nothing attached but the null space a Neumann matrix
+has) and a fresh KSP, the whole setup in the time; the first solve of each method at each N, in a process that
+has solved nothing else yet, is reported apart (``first_call``). Sequence mode: later frames of the same case
+through one persistent KSP per PETSc method (new values in the same Mat; for the free surface, whose pattern
+changes, a new Mat each frame), pyamg and AMGCL rebuilding. Methods take turns frame by frame.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..aggregate import cells
+from ..foreigncases import CASES, PATTERN_CHANGES, pyamg_cases
+from ..markdown import image, md_table, ms, n_label
+from .base import Size, Study, solve_all, tag
+
+CHART = "foreign.png"
+SCALES = Size("foreign_scales", [65536], [2048], "N of the foreign study")
+FRAMES = Size("foreign_frames", 4, 2, "sequence frames per case of the foreign study (0: single solves only)")
+CASE_NAMES = Size("foreign_cases", list(CASES), ["dmda2d", "dmda3d", "free_surface", "fem_tri", "neumann"],
+                  "cases of the foreign study", kind=str)
+
+
+def _frame(A, b, case):
+    """A bare :class:`~petsc_htp.scenes.Frame` around ``A``, ``b``."""
+    from ...scenes.generator import Frame
+
+    return Frame(A=A, b=b, rho=np.ones(A.shape[0]), coords=np.zeros((A.shape[0], 2)), grid_shape=(A.shape[0], 1),
+                 perm=np.arange(A.shape[0]), params={"case": case, "seed": 0})
+
+
+def problems(names, scales, examples=True) -> list:
+    """Frame 0 of every case at every N, then PyAMG's examples; nothing attached."""
+    from ..cases import Problem
+
+    out = [Problem(_frame(*CASES[c](n, 0), c), case=c, attach=False) for n in scales for c in names]
+    if examples:
+        out += [Problem(_frame(A, b, c), case=c, attach=False) for c, (A, b) in pyamg_cases().items()]
+    return out
+
+
+class _Persistent:
+    """One PETSc method's KSP kept over a case's frames: new values into the same Mat, or a new Mat."""
+
+    def __init__(self, method):
+        from petsc4py import PETSc
+
+        self.ksp = PETSc.KSP().create()
+        self.ksp.setOptionsPrefix(method.prefix)
+        self.mat, self.pattern = None, None
+
+    def solve(self, A, b) -> dict:
+        """Set the frame's values (a new Mat when the pattern changed) and solve from zero; the row's fields."""
+        from ...methods import reason_name
+        from ...petscmat import frame_mat, frame_vec
+
+        frame = _frame(A, b, "")
+        pattern = (A.indptr.tobytes(), A.indices.tobytes())
+        if self.mat is not None and pattern == self.pattern:
+            self.mat.setValuesCSR(A.indptr, A.indices, A.data)
+            self.mat.assemble()
+        else:
+            old, self.mat, self.pattern = self.mat, frame_mat(frame), pattern
+            if old is not None and old.getSize() != self.mat.getSize():
+                self.ksp.reset()                        # PETSc's KSP keeps work vectors of the old size
+            self.ksp.setOperators(self.mat, self.mat)
+            self.ksp.setFromOptions()
+            if old is not None:
+                old.destroy()
+        rhs = frame_vec(frame, self.mat)
+        x = rhs.duplicate()
+        x.set(0.0)
+        try:
+            t0 = time.perf_counter()
+            self.ksp.setUp()
+            t1 = time.perf_counter()
+            self.ksp.solve(rhs, x)
+            t2 = time.perf_counter()
+            code = self.ksp.getConvergedReason()
+            return {"setup_ms": 1e3 * (t1 - t0), "solve_ms": 1e3 * (t2 - t1), "iterations": self.ksp.getIterationNumber(),
+                    "reason": reason_name(code), "x": x.getArray().copy()}
+        finally:
+            rhs.destroy()
+            x.destroy()
+
+    def destroy(self):
+        for obj in (self.ksp, self.mat):
+            if obj is not None:
+                obj.destroy()
+
+
+def sequence(methods, names, scales, frames, extra, tick) -> list:
+    """Frames 1 .. ``frames`` of every case through persistent solvers (frame 0, left out, warms them up)."""
+    from ..cases import Problem
+    from ..runner import _finish, _solve, base_row, exception_row, load, peak_rss_mb
+
+    rows = []
+    loaded = [load(m, extra) for m in methods if m.is_petsc]
+    try:
+        for n in scales:
+            for case in names:
+                solvers = {m.name: _Persistent(m) for m in methods if m.is_petsc}
+                try:
+                    for k in range(frames + 1):
+                        A, b = CASES[case](n, k)
+                        problem = Problem(_frame(A, b, case), case=case, attach=False)
+                        for m in methods:
+                            try:
+                                if m.is_petsc:
+                                    res = solvers[m.name].solve(A, b)
+                                    row = _finish({**base_row(m, problem), **res}, A, b, res.pop("x"),
+                                                  solvers[m.name].ksp.getTolerances()[0])
+                                else:
+                                    row = _solve(m, m.prefix, problem, False)
+                            except Exception as exc:  # a failing frame is a result
+                                row = exception_row(m, problem, exc)
+                            row.pop("x", None)
+                            row["peak_rss_mb"] = peak_rss_mb()
+                            if k:
+                                rows.append(tag(row, study="foreign", mode="sequence", frame=k))
+                                tick()
+                finally:
+                    for s in solvers.values():
+                        s.destroy()
+    finally:
+        for entry in reversed(loaded):
+            entry.__exit__(None, None, None)
+    return rows
+
+
+def table(res, mode) -> str:
+    """Median ms (setup + solve), iterations and the largest true relres per case and method."""
+    rows = [r for r in res.rows["foreign"] if r.get("mode") == mode and not r.get("first_call")]
+    if not rows:
+        return "(none in this run)"
+    by = cells(rows, "case", "n", "method")
+    methods = res.methods("foreign")
+    keys = list(dict.fromkeys((r["case"], r["n"]) for r in rows))
+    body = []
+    for case, n in keys:
+        line = [case, n_label(n)]
+        for m in methods:
+            c = by.get((case, n, m))
+            if not c:
+                line.append("—")
+            elif not c["total_ms"]["count"]:
+                line.append(f"✗ {c['failure']}")
+            else:
+                line.append(f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})"
+                            + (f" ✗{c['failed']}" if c["failed"] else ""))
+        body.append(line)
+    return md_table(["case", "N"] + methods, body, left=2)
+
+
+def first_calls(res) -> str:
+    """Each method's first solve in the process (setup + solve ms), against its later median on the same case."""
+    rows = res.rows["foreign"]
+    first = [r for r in rows if r.get("first_call")]
+    if not first:
+        return "(none in this run)"
+    later = cells([r for r in rows if r.get("mode") == "single" and not r.get("first_call")], "case", "n", "method")
+    body = [[r["method"], r["case"], n_label(r["n"]), ms(r["total_ms"]) if r.get("ok") else f"✗ {r['failure']}",
+             ms(later.get((r["case"], r["n"], r["method"]), {}).get("total_ms", {}).get("median"))] for r in first]
+    return md_table(["method", "case", "N", "first call ms", "later ms"], body, left=3)
+
+
+def memory(res) -> str:
+    """Peak resident memory of the process after each method's single solves at each N (MiB)."""
+    rows = [r for r in res.rows["foreign"] if r.get("mode") == "single"]
+    peak = {}
+    for r in rows:
+        key = (r["method"], r["n"])
+        peak[key] = max(peak.get(key, 0.0), r.get("peak_rss_mb") or 0.0)
+    scales = sorted({n for _, n in peak})
+    body = [[m] + [f"{peak.get((m, n), float('nan')):.0f}" for n in scales] for m in res.methods("foreign")]
+    return md_table(["method"] + [f"N={n_label(n)}" for n in scales], body)
+
+
+class Foreign(Study):
+    """Matrices from other programs, single solves and sequences."""
+
+    name = "foreign"
+    help = ("matrices from other programs (DMDA with Dirichlet rows in 2-D/3-D, a moving free surface, rotated "
+            "anisotropy, P1 FEM on triangles and tets, log-normal permeability, Neumann walls, PyAMG's examples): "
+            "single solves with fresh KSPs (first call reported) and sequences with persistent KSPs")
+    sizes = (SCALES, FRAMES, CASE_NAMES)
+    readme_links = ((CHART, "foreign matrices"),)
+
+    def meta(self, settings):
+        return {"foreign": {"scales": settings["foreign_scales"], "frames": settings["foreign_frames"],
+                            "cases": settings["foreign_cases"]}}
+
+    def expected_solves(self, ctx):
+        s = ctx.settings
+        per_n = len(s["foreign_cases"]) * (1 + s["foreign_frames"])
+        return len(ctx.methods) * (len(s["foreign_scales"]) * per_n + len(pyamg_cases()))
+
+    def measure(self, ctx, tick):
+        s = ctx.settings
+        bad = [c for c in s["foreign_cases"] if c not in CASES]
+        if bad:
+            raise ValueError(f"unknown foreign case(s) {', '.join(bad)}; the cases are {', '.join(CASES)}")
+        single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign",
+                           keep_warmup=True)
+        for row in single:
+            row.setdefault("mode", "single")
+        seq = sequence(ctx.methods, s["foreign_cases"], s["foreign_scales"], s["foreign_frames"], ctx.extra, tick) \
+            if s["foreign_frames"] else []
+        return single + seq
+
+    def section(self, res):
+        meta = res.meta.get("foreign", {})
+        changes = ", ".join(PATTERN_CHANGES)
+        return "\n\n".join([
+            "## Matrices from other programs",
+            "Single solves: each case's matrix handed over bare (a Neumann matrix with its null space), a fresh "
+            "Mat and KSP, setup (analysis included) + solve ms and median iterations in parentheses; the warm-up "
+            "solve of each method at each N is reported below as its first call.",
+            table(res, "single"),
+            f"Sequence mode: {meta.get('frames', '?')} more frames per case with new values on one persistent KSP "
+            f"per PETSc method ({changes}: a new pattern every frame, so a new Mat); pyamg and AMGCL rebuild. "
+            "Median ms per frame (iterations).",
+            table(res, "sequence"),
+            "First call in the process (the warm-up solve) against the later single solves of the same case:",
+            first_calls(res),
+            "Peak resident memory of the process (MiB, every method so far in one process, so an upper bound):",
+            memory(res),
+            image(CHART, "Foreign matrices"),
+        ])
+
+    def charts(self, res, out):
+        from ..plotting import foreign_bars
+
+        rows = [r for r in res.rows["foreign"] if r.get("mode") == "single" and not r.get("first_call")]
+        return [foreign_bars(rows, res.methods("foreign"), out, CHART)] if rows else []
+
+    def summary(self, res):
+        return table(res, "single") + "\n\n" + table(res, "sequence")
+
+
+STUDY = Foreign()

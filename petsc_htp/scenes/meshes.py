@@ -1,0 +1,57 @@
+"""P1 finite-element Laplacians on unstructured simplices: triangles in 2-D, tetrahedra in 3-D.
+
+Nodes are a jittered lattice of the unit square (cube) in a random order, meshed by Delaunay; the boundary
+nodes are Dirichlet and eliminated, so the matrix is SPD with the interior nodes as unknowns, in the
+shuffled order a mesh generator leaves them. PETSc-free; scipy's Delaunay.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import Delaunay
+
+
+def _points(dim, side, rng) -> tuple:
+    """A jittered ``side``^dim lattice in a random order and which of its points lie on the boundary."""
+    grid = np.stack(np.meshgrid(*[np.arange(side)] * dim, indexing="ij"), -1).reshape(-1, dim).astype(float)
+    boundary = np.any((grid == 0) | (grid == side - 1), axis=1)
+    grid += np.where(boundary[:, None], 0.0, rng.uniform(-0.3, 0.3, grid.shape))
+    order = rng.permutation(len(grid))
+    return grid[order] / (side - 1), boundary[order]
+
+
+def stiffness(points, simplices, coefficient=None) -> sp.csr_matrix:
+    """The P1 stiffness matrix of a simplicial mesh (any dimension), with a conductivity per element (default 1)."""
+    n, dim = points.shape
+    X = points[simplices]                                   # (E, d+1, d)
+    J = X[:, 1:, :] - X[:, :1, :]                           # (E, d, d)
+    det = np.linalg.det(J)
+    keep = np.abs(det) > 1e-14
+    J, det, simplices = J[keep], det[keep], simplices[keep]
+    kappa = np.ones(keep.sum()) if coefficient is None else coefficient[keep]
+    ref = np.vstack([-np.ones((1, dim)), np.eye(dim)])     # reference gradients (d+1, d)
+    G = np.einsum("ad,ekd->eak", ref, np.linalg.inv(J))      # gradients: ref @ J^-T
+    vol = np.abs(det) / np.prod(np.arange(1, dim + 1))
+    K = (kappa * vol)[:, None, None] * np.einsum("eak,ebk->eab", G, G)
+    rows = np.repeat(simplices, dim + 1, axis=1).ravel()
+    cols = np.tile(simplices, (1, dim + 1)).ravel()
+    return sp.csr_matrix((K.ravel(), (rows, cols)), shape=(n, n))
+
+
+def p1_laplacian(dim, n, seed=0, frame=0) -> tuple:
+    """(A, b): a P1 Laplacian with about ``n`` unknowns on unstructured triangles (``dim`` 2) or tets (3).
+
+    ``seed`` makes the mesh; ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)) drawn from
+    it, so frames of one mesh share the pattern and differ in values."""
+    rng = np.random.default_rng(seed)
+    side = int(round(n ** (1.0 / dim))) + 2
+    points, boundary = _points(dim, side, rng)
+    simplices = Delaunay(points).simplices
+    kappa = np.exp(np.random.default_rng([seed, frame]).standard_normal(len(simplices))) if frame else None
+    A = stiffness(points, simplices, kappa)
+    inner = np.flatnonzero(~boundary)
+    A = A[inner][:, inner].tocsr()
+    A.sum_duplicates()
+    A.sort_indices()
+    m = A.shape[0]
+    return A, np.full(m, 1.0 / m)

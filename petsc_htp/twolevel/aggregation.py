@@ -1,0 +1,110 @@
+"""Leaves that follow the couplings: aggregates of aggregates of A's strong graph, by PyAMG's compiled kernels.
+
+A coupling a_ij is strong when |a_ij| >= theta sqrt(|a_ii a_jj|) (smoothed aggregation's symmetric measure,
+``pyamg.amg_core.symmetric_strength_of_connection``). Standard aggregation (``amg_core.standard_aggregation``:
+a root and its strong neighbours, then the rest joined to a neighbouring aggregate) groups the rows; the
+aggregates' own graph, with each pair's couplings summed in magnitude, is aggregated again, ``passes`` times in
+all, so a leaf holds 10-25 rows that are strongly coupled to each other. Everything is O(nnz) and compiled (the
+kernels, scipy's sparse conversions and RCM): no Python loop over rows.
+
+Rows are treated by what couples them:
+
+- *decoupled* rows, whose off-diagonal entries are all zero or absent (a DMDA's Dirichlet rows, stored as
+  identity rows with explicit zeros), are gathered into leaves of :data:`DECOUPLED_LEAF` rows of their own; the
+  leaf solve is exact on them and they get no coarse vector (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`);
+- rows with couplings but no strong one join the aggregate of their largest coupling.
+
+Within a leaf, rows are in the reverse Cuthill-McKee order of the leaf's own graph, so that a row's position in
+its leaf is a smooth coordinate (the eig coarse space's seeds are cosines of it).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from pyamg import amg_core
+
+
+THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
+PASSES = 2              # aggregation passes: 2 gives leaves of 10-25 rows on 2-D and 3-D Poisson-type graphs
+DECOUPLED_LEAF = 64     # rows per leaf of decoupled rows
+
+
+def decoupled_rows(A) -> np.ndarray:
+    """Boolean (n,): rows of a square CSR ``A`` with no nonzero off-diagonal entry."""
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    coupled = (A.data != 0) & (A.indices != rows)
+    return np.bincount(rows[coupled], minlength=A.shape[0]) == 0
+
+
+def strength(A, theta=THETA) -> sp.csr_matrix:
+    """The strong couplings of ``A`` (diagonal kept): PyAMG's symmetric strength of connection."""
+    n = A.shape[0]
+    Sp, Sj, Sx = np.empty_like(A.indptr), np.empty_like(A.indices), np.empty_like(A.data)
+    amg_core.symmetric_strength_of_connection(n, theta, A.indptr, A.indices, A.data, Sp, Sj, Sx)
+    nnz = int(Sp[-1])
+    return sp.csr_matrix((Sx[:nnz], Sj[:nnz], Sp), shape=A.shape)
+
+
+def standard(S) -> tuple:
+    """(count, aggregate of each row, -1 where a row has no strong neighbour) of PyAMG's standard aggregation."""
+    n = S.shape[0]
+    agg, roots = np.empty(n, dtype=S.indices.dtype), np.empty(n, dtype=S.indices.dtype)
+    count = amg_core.standard_aggregation(n, S.indptr, S.indices, agg, roots)
+    return int(count), agg.astype(np.int64)
+
+
+def _largest_neighbour(A, rows) -> np.ndarray:
+    """For each of ``rows`` (each with a nonzero off-diagonal entry) the column of its largest |a_ij|, j != i."""
+    sub = A[rows]
+    r = np.repeat(np.arange(rows.size), np.diff(sub.indptr))
+    weight = np.where(sub.indices != rows[r], np.abs(sub.data), -1.0)
+    order = np.lexsort((-weight, r))                                    # each row's largest first
+    first = np.concatenate(([0], np.cumsum(np.diff(sub.indptr))[:-1]))
+    return sub.indices[order[first]].astype(np.int64)
+
+
+def _pass(M, theta) -> tuple:
+    """One aggregation pass over the graph ``M``: (count, aggregate of every node, every node placed)."""
+    count, agg = standard(strength(M, theta))
+    lone = np.flatnonzero(agg < 0)
+    if lone.size:
+        coupled = lone[~decoupled_rows(M)[lone]]
+        if coupled.size:                                                # weak couplings only: the largest one
+            host = agg[_largest_neighbour(M, coupled)]
+            agg[coupled[host >= 0]] = host[host >= 0]
+        lone = np.flatnonzero(agg < 0)
+        agg[lone] = count + np.arange(lone.size)                        # whatever is left stands alone
+        count += lone.size
+    return count, agg
+
+
+def _graph(M, agg, count) -> sp.csr_matrix:
+    """The aggregates' graph: each pair's couplings summed in magnitude (self couplings on the diagonal)."""
+    rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+    G = sp.csr_matrix((np.abs(M.data), (agg[rows], agg[M.indices])), shape=(count, count))
+    G.sum_duplicates()
+    G.sort_indices()
+    return G
+
+
+def aggregates(A, theta=THETA, passes=PASSES) -> np.ndarray:
+    """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings,
+    decoupled rows in leaves of their own (see the module docstring)."""
+    n = A.shape[0]
+    lone = decoupled_rows(A)
+    keep = np.flatnonzero(~lone)
+    part = np.full(n, -1, dtype=np.int64)
+    count = 0
+    if keep.size:
+        M = A if not lone.any() else A[keep][:, keep].tocsr()
+        agg = np.arange(keep.size)
+        for step in range(passes):
+            count, node = _pass(M, theta)
+            agg = node[agg]
+            if step + 1 < passes:
+                M = _graph(M, node, count)
+        part[keep] = agg
+    if lone.any():                                                      # decoupled rows: leaves of their own
+        idle = np.flatnonzero(lone)
+        part[idle] = count + np.arange(idle.size) // DECOUPLED_LEAF
+    return part

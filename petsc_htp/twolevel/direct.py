@@ -1,0 +1,124 @@
+"""A small matrix's preconditioner: one sparse Cholesky factor of the whole matrix (one iteration).
+
+Below :data:`petsc_htp.twolevel.sizing.DIRECT_MAX` rows on one rank, a sparse factor costs less than building
+leaves, a coarse space and their products (sizing's docstring has the measurement). A singular matrix (an
+attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal entry of
+each null component is raised by its own magnitude, so the factor exists and is exact on vectors orthogonal to
+the component's constant, which is what a KSP with the null space attached hands over. The factor's inertia
+checks that the matrix is positive (semi)definite: negative pivots are an error that says so.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import nullspace
+from .composed import configured_pc
+
+FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}
+
+
+class DirectPC:
+    """The whole matrix factored (same interface as :class:`~petsc_htp.twolevel.composed.TwoLevelPC`).
+
+    Parameters
+    ----------
+    mat : petsc4py.PETSc.Mat
+        A sequential AIJ operator.
+    rows : scipy.sparse.csr_matrix
+        Its rows (the analysed pattern).
+    cfg : Config
+    prefix : str
+        Options prefix of the factor: ``<prefix>leaf_``.
+    """
+
+    def __init__(self, mat, rows, cfg, prefix):
+        t0 = time.perf_counter()
+        self.mat, self.cfg, self.prefix = mat, cfg, prefix + "leaf_"
+        self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
+        self.G = self.pc = None
+        self.age, self.times, self.null_components = 0, {}, 0
+        self.analysis_ms = 1e3 * (time.perf_counter() - t0)
+
+    @staticmethod
+    def moved(rows) -> bool:
+        """Nothing here depends on the values' shape: never a new analysis for new values."""
+        return False
+
+    def resolved(self, cfg):
+        """``cfg`` as it is (nothing is sized by the problem here)."""
+        return cfg
+
+    def numeric(self, rows, density=None, keep_space=False):
+        """Factor the new values (grounded where a component is null)."""
+        t0 = time.perf_counter()
+        nsp = self.mat.getNullSpace()
+        if nsp.handle:
+            null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
+                                               self.comp_of_row, self.n_comp)
+        else:
+            null = nullspace.null_by_rowsums(np.asarray(rows.sum(axis=1)).ravel(), rows.diagonal(), self.comp_of_row,
+                                             self.n_comp)
+        self.null_components = int(null.sum())
+        target = self.mat
+        if null.any():
+            grounded = nullspace.first_rows(self.comp_of_row, null)
+            if self.G is None:
+                self.G = self.mat.duplicate(copy=True)
+            else:
+                self.mat.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            for i, d in zip(grounded, rows.diagonal()[grounded]):
+                self.G.setValue(int(i), int(i), abs(d), addv=PETSc.InsertMode.ADD_VALUES)
+            self.G.assemble()
+            target = self.G
+        if self.pc is None:
+            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, FACTOR)
+            self.ordering = PETSc.Options(self.prefix).getString("pc_factor_mat_ordering_type",
+                                                                 FACTOR["pc_factor_mat_ordering_type"])
+        else:
+            self.pc.setOperators(target, target)
+        self.pc.setUp()
+        self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
+        if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
+            negative = self.pc.getFactorMatrix().getInertia()[0]
+            if negative:
+                raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
+                                 f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+
+    def mult(self, x, y):
+        """y = (grounded A)^-1 x."""
+        self.pc.apply(x, y)
+
+    def presolve(self, ksp, b, x, stale=False):
+        """Nothing to start."""
+        return None
+
+    def check(self, probes=0) -> str:
+        """Empty when the factorisation succeeded."""
+        reason = self.pc.getFailedReason()
+        return "" if reason == PETSc.PC.FailedReason.NOERROR else f"the factorisation failed ({reason})"
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the factor."""
+        return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
+
+    def describe(self) -> list:
+        """Lines for ``-ksp_view``."""
+        n = self.mat.getSize()[0]
+        return [f"direct: {n} rows, at most the size where one sparse Cholesky factor is cheapest "
+                f"({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
+                f"options -{self.prefix}*)"
+                + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),
+                f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}",
+                f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"]
+
+    def destroy(self):
+        """Free the factor and the grounded copy."""
+        for name in ("pc", "G"):
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.destroy()
+                setattr(self, name, None)

@@ -1,0 +1,186 @@
+"""Matrices from other programs: aggregation leaves, decoupled rows, what the graph shows, small matrices solved
+directly, leaves made anew when the couplings move, and the benchmark's foreign study."""
+import itertools
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+from petsc_htp.bench import main, store
+from petsc_htp.bench.foreigncases import CASES, pyamg_cases
+from petsc_htp.petscmat import frame_mat, frame_vec
+from petsc_htp.scenes import foreign, meshes
+from petsc_htp.scenes.generator import Frame
+from petsc_htp.twolevel import sizing
+from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, aggregates, decoupled_rows
+from petsc_htp.twolevel.graphshape import graph_shape
+from petsc_htp.twolevel.leaves import choose_leaves
+
+_PREFIXES = itertools.count()
+
+
+def _frame(A, b):
+    n = A.shape[0]
+    return Frame(A=A, b=b, rho=np.ones(n), coords=np.zeros((n, 2)), grid_shape=(n, 1), perm=np.arange(n), params={})
+
+
+def solve(A, b, ksp_type="cg", mat=None, ksp=None, **opts):
+    """HTPPC as it comes on ``A`` (null space attached where A's row sums vanish) under a fresh prefix, or on the
+    given ``ksp``; (reason, iterations, true relres, ksp, mat)."""
+    mat = mat or frame_mat(_frame(A, b), PETSc.COMM_SELF)
+    if ksp is None:
+        prefix = f"fo{next(_PREFIXES)}_"
+        db = PETSc.Options(prefix)
+        for k, v in {"ksp_type": ksp_type, "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8,
+                     "ksp_max_it": 500, "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", **opts}.items():
+            db.setValue(k, v)
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setOptionsPrefix(prefix)
+        ksp.setOperators(mat, mat)
+        ksp.setFromOptions()
+    rhs = frame_vec(_frame(A, b), mat)
+    x = rhs.duplicate()
+    x.set(0.0)
+    ksp.solve(rhs, x)
+    r = b - A @ x.getArray()
+    if np.abs(A.sum(axis=1)).max() <= 1e-10 * np.abs(A.diagonal()).max():
+        r = r - r.mean()
+    return ksp.getConvergedReason(), ksp.getIterationNumber(), np.linalg.norm(r) / np.linalg.norm(b), ksp, mat
+
+
+def lines(ksp) -> str:
+    return "\n".join(ksp.getPC().getPythonContext().setup.describe())
+
+
+# ------------------------------------------------------------------ leaves and graph
+
+def test_aggregation_leaves_cover_every_row_and_keep_decoupled_rows_apart():
+    A, _ = foreign.dmda(2, 40)
+    lone = decoupled_rows(A)
+    assert lone.sum() == 4 * 39                           # the DMDA's boundary layer: identity rows, zeros stored
+    part = aggregates(A)
+    assert part.min() == 0 and np.all(np.bincount(part) > 0)
+    assert not set(part[lone]) & set(part[~lone])         # decoupled rows share no leaf with coupled ones
+    assert np.bincount(part[lone]).max() <= DECOUPLED_LEAF
+    sizes = np.bincount(part[~lone])
+    sizes = sizes[sizes > 0]
+    assert 8 <= sizes.mean() <= 40, sizes.mean()
+    leaves = choose_leaves(A)
+    assert leaves.kind == "aggregation" and np.array_equal(np.sort(leaves.perm), np.arange(A.shape[0]))
+
+
+def test_aggregation_keeps_strongly_coupled_rows_together():
+    """A jump of 1e6 across x = 1/2: no leaf holds rows on both sides."""
+    side = 32
+    k = np.ones((side, side))
+    k[:, side // 2:] = 1e6
+    A, _ = foreign.lognormal(side, 1.0)                   # the pattern; values from k below
+    y, x = np.divmod(np.arange(side * side), side)
+    rows = np.repeat(np.arange(side * side), np.diff(A.indptr))
+    w = 2 * k.ravel()[rows] * k.ravel()[A.indices] / (k.ravel()[rows] + k.ravel()[A.indices])
+    off = rows != A.indices
+    data = np.where(off, -w, 0.0)
+    data[~off] = -np.bincount(rows[off], data[off], side * side) + 4 * k.ravel()
+    A = sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
+    part = aggregates(A)
+    left = x < side // 2
+    assert not set(part[left]) & set(part[~left])
+
+
+@pytest.mark.parametrize("case, dim", [(lambda: foreign.dmda(2, 48), 2), (lambda: foreign.anisotropic(48), 2),
+                                       (lambda: meshes.p1_laplacian(2, 3000), 2), (lambda: foreign.dmda(3, 20), 3),
+                                       (lambda: meshes.p1_laplacian(3, 4000), 3)],
+                         ids=["dmda2d", "9-point", "triangles", "dmda3d", "tets"])
+def test_graph_shape_tells_the_dimension_whatever_the_nonzeros_per_row(case, dim):
+    A, _ = case()
+    shape = graph_shape(A)
+    assert shape.dim == dim, shape.describe()
+    assert f"{dim}-D" in shape.describe()
+
+
+def test_graph_shape_counts_weak_couplings():
+    strong, _ = foreign.anisotropic(40, 1.0, 0.0)
+    weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
+    assert graph_shape(strong).weak < 0.05 < 0.3 < graph_shape(weak).weak
+
+
+# ------------------------------------------------------------------ HTPPC on foreign matrices
+
+@pytest.mark.parametrize("case", ["dmda2d", "dmda3d", "free_surface", "fem_tri", "fem_tet", "lognormal", "neumann"])
+def test_default_converges_within_40_iterations_on_foreign_matrices(case):
+    A, b = CASES[case](6000, 0)
+    reason, its, relres, ksp, _ = solve(A, b)
+    assert reason > 0 and its <= 40 and relres <= 1e-8, (case, reason, its, relres)
+    text = lines(ksp)
+    assert "leaves: aggregation" in text and "graph:" in text
+
+
+def test_decoupled_rows_get_no_coarse_vector():
+    A, b = foreign.dmda(3, 20)
+    reason, its, relres, ksp, _ = solve(A, b)
+    setup = ksp.getPC().getPythonContext().setup
+    lone = int(decoupled_rows(A).sum())
+    assert reason > 0 and its <= 40 and relres <= 1e-8
+    assert setup.m == int(setup.ncols.sum()) and setup.m < A.shape[0] - lone
+    assert f"{lone} of them decoupled rows (no coarse vector)" in lines(ksp)
+    assert np.count_nonzero(setup.ncols) == setup.ncols.size - int(np.ceil(lone / DECOUPLED_LEAF))
+
+
+@pytest.mark.parametrize("name", list(pyamg_cases()))
+@pytest.mark.parametrize("ksp_type", ["cg", "gmres", "minres"])
+def test_small_matrices_are_factored_once_and_any_ksp_converges(name, ksp_type):
+    A, b = pyamg_cases()[name]
+    assert A.shape[0] <= sizing.DIRECT_MAX
+    reason, its, relres, ksp, _ = solve(A, b, ksp_type)
+    assert reason > 0 and its <= 2 and relres <= 1e-8, (reason, its, relres)
+    assert lines(ksp).startswith("direct:")
+
+
+def test_small_singular_matrix_is_grounded():
+    A, b = foreign.neumann(20)
+    reason, its, relres, ksp, _ = solve(A, b)
+    assert reason > 0 and its <= 2 and relres <= 1e-8
+    assert "1 null component(s) grounded" in lines(ksp)
+
+
+def test_direct_max_zero_keeps_the_two_level_method():
+    A, b = foreign.neumann(20)
+    reason, its, relres, ksp, _ = solve(A, b, htp_direct_max="0")
+    assert reason > 0 and 2 < its <= 40 and "leaves: aggregation" in lines(ksp)
+
+
+def test_new_leaves_when_the_couplings_move_and_not_otherwise():
+    A0, b = CASES["dmda2d"](4096, 0)
+    reason, its, _, ksp, mat = solve(A0, b)
+    ctx = ksp.getPC().getPythonContext()
+    assert ctx.analysis_count == 1 and reason > 0
+    A0.data *= 2.0                                        # the same shape of the couplings: numeric step only
+    mat.setValuesCSR(A0.indptr, A0.indices, A0.data)
+    mat.assemble()
+    reason, same_its, _, _, _ = solve(A0, b, mat=mat, ksp=ksp)
+    assert reason > 0 and ctx.analysis_count == 1 and ctx.numeric_count == 2 and abs(same_its - its) <= 1
+    A1, _ = CASES["dmda2d"](4096, 1)                       # the inclusions moved: new leaves
+    mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
+    mat.assemble()
+    reason, moved_its, relres, _, _ = solve(A1, b, mat=mat, ksp=ksp)
+    assert reason > 0 and ctx.analysis_count == 2 and moved_its <= 40 and relres <= 1e-8
+
+
+# ------------------------------------------------------------------ the study
+
+def test_foreign_study_quick(tmp_path):
+    out = tmp_path / "foreign"
+    assert main(["--quick", "--out", str(out), "--studies", "foreign", "--methods", "cg_htp", "cg_icc",
+                 "amgcl_ce500", "--foreign-cases", "dmda2d", "free_surface", "--threads", "1", "--no-progress"]) == 0
+    rows = store.read_jsonl(store.study_path(out, "foreign"))
+    single = [r for r in rows if r["mode"] == "single" and not r.get("first_call")]
+    assert {(r["case"], r["method"]) for r in single} >= {("dmda2d", "cg_htp"), ("free_surface", "amgcl_ce500")}
+    assert all(r["ok"] and r["relres_proj"] <= 1e-7 for r in rows if r["method"] != "cg_icc"), \
+        [r for r in rows if not r["ok"]]
+    seq = [r for r in rows if r["mode"] == "sequence" and r["case"] == "free_surface"]
+    assert len({r["n"] for r in seq if r["method"] == "cg_htp"}) == 2    # the liquid moved: new patterns
+    assert any(r.get("first_call") for r in rows)
+    report = (out / "report.md").read_text()
+    assert "## Matrices from other programs" in report and "first call" in report
+    assert (out / "foreign.png").stat().st_size > 0
