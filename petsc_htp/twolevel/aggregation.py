@@ -14,8 +14,7 @@ Rows are treated by what couples them:
   leaf solve is exact on them and they get no coarse vector (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`);
 - rows with couplings but no strong one join the aggregate of their largest coupling.
 
-Within a leaf, rows are in the reverse Cuthill-McKee order of the leaf's own graph, so that a row's position in
-its leaf is a smooth coordinate (the eig coarse space's seeds are cosines of it).
+Within a leaf, rows keep the matrix's order.
 """
 from __future__ import annotations
 

@@ -62,6 +62,26 @@ def piece_constants(lay, index=None) -> torch.Tensor:
     return P.view(K, L, -1)
 
 
+def flat(y, leaf, pieces) -> tuple:
+    """The one eig vector of every leaf (q = 1, no extras) without the padded layout, as :func:`basis` makes it:
+    ``y`` (n,) in the leaves' order made orthogonal to the constants of the leaf's pieces (its mean on each piece
+    taken out; a piece of one row, such as a decoupled row, becomes zero), then normalised per leaf twice (the
+    second pass removes the first's rounding); a leaf where less than :data:`DEPENDENT` of its norm is left gets
+    none.
+
+    Returns (the vector, whether each leaf kept one)."""
+    scale = np.sqrt(np.bincount(leaf, y * y, minlength=pieces.count.size))
+    y = y - (np.bincount(pieces.label, y, minlength=pieces.size.size) / np.maximum(pieces.size, 1))[pieces.label]
+    ok = np.ones(scale.size, dtype=bool)
+    floor = DEPENDENT * scale
+    for _ in range(2):
+        norm = np.sqrt(np.bincount(leaf, y * y, minlength=scale.size))
+        ok &= norm > floor
+        y = np.where(ok[leaf], y / np.where(ok, norm, 1.0)[leaf], 0.0)
+        floor = np.full(scale.size, 0.5)
+    return y, ok
+
+
 def _orthonormal(X, scale) -> torch.Tensor:
     """Orthonormal columns spanning each leaf's X (K, Lmax, q), as many as its rank; the rest come out zero.
 

@@ -197,17 +197,20 @@ class TwoLevelPC:
         self._matrices(rows, prefix)
         self.times, self.age, self.kept, self._forced, self._dense = {}, 0, None, None, None
         self.numeric_count = 0
-        self._d_rows = np.repeat(np.arange(self.lay.n), np.diff(self.lay.d_indptr))
-        self.weak_made = self._weak_inside(rows.data)
+        if self.leaves.kind == "aggregation":             # where each off-diagonal entry of D and its diagonals sit
+            lay = self.lay
+            r = np.repeat(np.arange(lay.n), np.diff(lay.d_indptr))
+            off = r != lay.d_indices
+            self._weak_src = lay.d_src[off]
+            self._weak_row, self._weak_col = lay.d_src[lay.d_diag[r[off]]], lay.d_src[lay.d_diag[lay.d_indices[off]]]
+            self.weak_made = self._weak_inside(rows.data)
         self.analysis_ms = _ms(t0)
 
     def _weak_inside(self, data) -> int:
         """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
-        lay = self.lay
-        vals = np.abs(data[lay.d_src])
-        diag = vals[lay.d_diag]
-        off = (self._d_rows != lay.d_indices) & (vals != 0)
-        return int(np.count_nonzero(off & (vals < THETA * np.sqrt(diag[self._d_rows] * diag[lay.d_indices]))))
+        vals = data[self._weak_src]
+        return int(np.count_nonzero((vals * vals < THETA * THETA * np.abs(data[self._weak_row] * data[self._weak_col]))
+                                    & (vals != 0)))
 
     def moved(self, rows) -> bool:
         """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
@@ -286,8 +289,6 @@ class TwoLevelPC:
         self.m = self.coll.sum(self.ncols.sum())
         self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
         self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
-        self.constants = coarsespace.piece_constants(lay, index)
-        width = lead + self.constants.shape[2]
         per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
         row = np.repeat(np.arange(lay.n), per_row)
         j = np.arange(row.size) - np.repeat(np.cumsum(per_row) - per_row, per_row)
@@ -295,7 +296,17 @@ class TwoLevelPC:
         self.w_rows = row + lay.start
         self.w_cols = self.leaf_col[lay.leaf[p]] + j
         self.w_local_col = self.w_cols - first                        # W's columns of this rank's rows are its own
-        self.w_src = lay.pos[p] * width + j                           # where each value sits in the padded basis
+        # aggregation leaves: numpy and unpadded (coarsespace.flat); other leaves keep the padded basis, whose
+        # rounding the stability map and the back-ends' parity were measured with (contrast 1e6 sits at the edge)
+        self.flat = lv.kind == "aggregation" and self.q <= 1 and not self.extra
+        if self.flat:
+            self.w_p, self.w_lead = p, j < lead
+            piece = pc.label[p]
+            mine = ~self.w_lead & (j - lead == index[piece])
+            self.w_fixed = np.where(mine, 1.0 / np.sqrt(pc.size[piece]), 0.0)
+        else:                                                         # the padded basis of coarsespace.basis
+            self.constants = coarsespace.piece_constants(lay, index)
+            self.w_src = lay.pos[p] * (lead + self.constants.shape[2]) + j
         if lead:
             self.seeds = coarsespace.seeds(lay.leaf, lv.offsets, lv.sizes, 1, lead)
 
@@ -310,7 +321,7 @@ class TwoLevelPC:
             self.leafsolver = OverlappingLeaves(lay, rows, self.cfg.overlap, factor)
         else:
             self.leafsolver = ExactLeaves(lay, self.d_values, factor, lay.identity and self.coll.size == 1)
-        self.s_values, self.S, self.S_factor = None, None, None
+        self.s_values, self.S, self.S_factor, self.S_csr = None, None, None, None
         if self.q + self.extra:
             self.s_values = np.zeros(lay.d_src.size)
             self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, n)
@@ -319,7 +330,7 @@ class TwoLevelPC:
         self.o_values = np.zeros(lay.o_src.size)
         self.o_perm_rows = lay.iperm[lay.o_rows]                     # O's rows in the leaves' order
         self.O = _coo_aij(comm, lay.o_rows + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
-        self.w_values = np.zeros(self.w_src.size)
+        self.w_values = np.zeros(self.w_rows.size)
         self.W = _coo_aij(comm, self.w_rows, self.w_cols, (N, self.m), (n, int(self.ncols.sum())), self.col_block)
         self.C = self.E = self.F = self.AW = self.Eb = None
         self.coarse_prefix = prefix + "cs_"
@@ -343,8 +354,7 @@ class TwoLevelPC:
         T["leaf"] = _ms(t0)
         t0 = time.perf_counter()
         if not (keep_space and self.kept is not None):
-            P, self.kept = self._space(rows, density)
-            np.take(P.numpy().reshape(-1), self.w_src, out=self.w_values)
+            self.kept = self._space(rows, density)
             self.age = 0
         else:
             self.age += 1
@@ -391,20 +401,29 @@ class TwoLevelPC:
         drop, ground = nullspace.dropped(null, self.comp_of_piece, self.isolated)
         return null, drop, ground[self.piece_offset:self.piece_offset + self.lay.pieces.n_pieces]
 
-    def _space(self, rows, density) -> tuple:
-        """The coarse basis (padded) and the vectors kept per leaf."""
+    def _space(self, rows, density) -> np.ndarray:
+        """The coarse vectors into ``w_values``; returns the vectors kept per leaf."""
         lay = self.lay
-        if not self.q + self.extra:
-            return coarsespace.basis(lay, self.constants)
-        outside = np.bincount(self.o_perm_rows, self.o_values, minlength=lay.n)
-        diag = coarsespace.neumann_diagonal(self.d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
-        np.copyto(self.s_values, self.d_values)
-        self.s_values[lay.d_diag] = diag
-        self.S.stateIncrease()
-        self.S_factor.setUp()
-        start = self.seeds if self.cfg.coarse != "learned" else self._learned_seeds(rows, density)
-        return coarsespace.basis(lay, self.constants, start, self._solve_neumann, self.extra, self.S_csr, diag,
-                                 self.cfg.tol)
+        start = diag = None
+        if self.q + self.extra:                        # one inverse-iteration step of the leaves' Neumann matrices
+            outside = np.bincount(self.o_perm_rows, self.o_values, minlength=lay.n)
+            diag = coarsespace.neumann_diagonal(self.d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
+            np.copyto(self.s_values, self.d_values)
+            self.s_values[lay.d_diag] = diag
+            self.S.stateIncrease()
+            self.S_factor.setUp()
+            start = self.seeds if self.cfg.coarse != "learned" else self._learned_seeds(rows, density)
+        if self.flat:
+            np.copyto(self.w_values, self.w_fixed)
+            if not self.q:
+                return self.ncols
+            y, ok = coarsespace.flat(self._solve_neumann(start)[:, 0], lay.leaf, lay.pieces)
+            self.w_values[self.w_lead] = y[self.w_p[self.w_lead]]
+            return self.ncols - ((self.ncols > 0) & ~ok)
+        P, kept = coarsespace.basis(lay, self.constants, start, self._solve_neumann, self.extra,
+                                    self.S_csr, diag, self.cfg.tol)
+        np.take(P.numpy().reshape(-1), self.w_src, out=self.w_values)
+        return kept
 
     def _learned_seeds(self, rows, density) -> np.ndarray:
         """The coarse network's vectors (constant column left out) as seeds, plus the cosine extras."""
