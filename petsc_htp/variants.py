@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from .twolevel import coarsenet, composed as twolevelpc, sizing
 from .twolevel.direct import DirectPC
+from .twolevel.graphshape import graph_shape
 from .checkpoint import DEFAULT
 from .paper.inference import HTP
 
@@ -105,18 +106,23 @@ class TwoLevel:
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
-        if self.direct(mat):
+        if self.direct(mat, A, coords):
             return DirectPC(mat, A, self.config(), self.prefix + "htp_")
         return twolevelpc.TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
-    def direct(self, mat) -> bool:
-        """Whether one sparse factor serves ``mat``: one rank, at most ``-htp_direct_max`` rows (by measurement
-        when -1), and no two-level option set."""
+    def direct(self, mat, A, coords) -> bool:
+        """Whether one sparse factor serves ``mat`` (this rank's rows ``A``): one rank, no two-level option set, and
+        at most ``-htp_direct_max`` rows, or with -1 :data:`sizing.DIRECT_MAX` rows of its dimension."""
         o = self.opts
-        limit = sizing.DIRECT_MAX if o.direct_max < 0 else o.direct_max
         plain = (o.leaf, o.ordering, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank, o.form,
                  o.coarse_space_every) == (0, "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
-        return mat.getComm().getSize() == 1 and mat.getSize()[0] <= limit and plain
+        n = mat.getSize()[0]
+        if mat.getComm().getSize() > 1 or not plain or n > max(o.direct_max, *sizing.DIRECT_MAX.values()):
+            return False
+        if o.direct_max >= 0:
+            return n <= o.direct_max
+        shape = graph_shape(A) if coords is None else None
+        return n <= sizing.DIRECT_MAX[sizing.dimension(None if coords is None else coords.shape[1], shape)]
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""

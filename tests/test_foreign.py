@@ -109,7 +109,7 @@ def test_graph_shape_counts_weak_couplings():
 
 @pytest.mark.parametrize("case", ["dmda2d", "dmda3d", "free_surface", "fem_tri", "fem_tet", "lognormal", "neumann"])
 def test_default_converges_within_40_iterations_on_foreign_matrices(case):
-    A, b = CASES[case](6000, 0)
+    A, b = CASES[case](12000, 0)                          # above the small-matrix factor's sizes
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and its <= 40 and relres <= 1e-8, (case, reason, its, relres)
     text = lines(ksp)
@@ -131,14 +131,14 @@ def test_decoupled_rows_get_no_coarse_vector():
 @pytest.mark.parametrize("ksp_type", ["cg", "gmres", "minres"])
 def test_small_matrices_are_factored_once_and_any_ksp_converges(name, ksp_type):
     A, b = pyamg_cases()[name]
-    assert A.shape[0] <= sizing.DIRECT_MAX
+    assert A.shape[0] <= sizing.DIRECT_MAX[3]
     reason, its, relres, ksp, _ = solve(A, b, ksp_type)
     assert reason > 0 and its <= 2 and relres <= 1e-8, (reason, its, relres)
     assert lines(ksp).startswith("direct:")
 
 
 def test_small_singular_matrix_is_grounded():
-    A, b = foreign.neumann(20)
+    A, b = foreign.neumann(40)
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and its <= 2 and relres <= 1e-8
     assert "1 null component(s) grounded" in lines(ksp)
@@ -150,8 +150,17 @@ def test_direct_max_zero_keeps_the_two_level_method():
     assert reason > 0 and 2 < its <= 40 and "leaves: aggregation" in lines(ksp)
 
 
+@pytest.mark.parametrize("case, n, direct", [("dmda2d", 7900, True), ("dmda2d", 8200, False),
+                                             ("dmda3d", 1000, True), ("dmda3d", 1331, False)])
+def test_the_small_matrix_factor_is_sized_by_the_dimension(case, n, direct):
+    A, b = CASES[case](n, 0)
+    reason, its, relres, ksp, _ = solve(A, b)
+    assert reason > 0 and relres <= 1e-8
+    assert lines(ksp).startswith("direct:") == direct == (A.shape[0] <= sizing.DIRECT_MAX[int(case[4])])
+
+
 def test_new_leaves_when_the_couplings_move_and_not_otherwise():
-    A0, b = CASES["dmda2d"](4096, 0)
+    A0, b = CASES["dmda2d"](12000, 0)
     reason, its, _, ksp, mat = solve(A0, b)
     ctx = ksp.getPC().getPythonContext()
     assert ctx.analysis_count == 1 and reason > 0
@@ -160,7 +169,7 @@ def test_new_leaves_when_the_couplings_move_and_not_otherwise():
     mat.assemble()
     reason, same_its, _, _, _ = solve(A0, b, mat=mat, ksp=ksp)
     assert reason > 0 and ctx.analysis_count == 1 and ctx.numeric_count == 2 and abs(same_its - its) <= 1
-    A1, _ = CASES["dmda2d"](4096, 1)                       # the inclusions moved: new leaves
+    A1, _ = CASES["dmda2d"](12000, 1)                       # the inclusions moved: new leaves
     mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
     mat.assemble()
     reason, moved_its, relres, _, _ = solve(A1, b, mat=mat, ksp=ksp)

@@ -37,7 +37,8 @@ def solve(A, b, **opts):
     prefix = f"tl{next(_PREFIXES)}_"
     db = PETSc.Options(prefix)
     base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 2000,
-            "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_variant": "twolevel"}
+            "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_variant": "twolevel",
+            "htp_direct_max": 0}          # the two-level method at every size (the small-matrix factor: test_foreign)
     for k, v in {**base, **opts}.items():
         if v is not None:
             db.setValue(k, v)

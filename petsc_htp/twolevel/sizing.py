@@ -16,11 +16,17 @@ is small. A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, w
 default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
 (sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
 
+Below :data:`DIRECT_MAX` rows one sparse Cholesky factor of the whole matrix (nested dissection) costs less
+than the two-level setup: the foreign study's small-matrix sweep (``petsc-htp bench --studies foreign --methods
+cg_htp_direct cg_htp_twolevel --foreign-scales 500 1000 2000 4000 8000 16000``; README) has the factor ahead up
+to about 8000 rows in 2-D (15 against 21 ms at 7921) and 1000 in 3-D (3.5 against 4.9 ms; 12.5 against 6.8 at
+2197), where its fill grows as N^(4/3).
+
 PETSc-free (the fast path imports it).
 """
 from __future__ import annotations
 
-DIRECT_MAX = 2000          # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
+DIRECT_MAX = {2: 8000, 3: 1000}    # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
