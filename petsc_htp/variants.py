@@ -121,6 +121,8 @@ class TwoLevel:
             return False
         if o.direct_max >= 0:
             return n <= o.direct_max
+        if n <= min(sizing.DIRECT_MAX.values()):
+            return True
         shape = graph_shape(A) if coords is None else None
         return n <= sizing.DIRECT_MAX[sizing.dimension(None if coords is None else coords.shape[1], shape)]
 

@@ -47,18 +47,20 @@ class GraphShape:
 
 def _ball_sizes(indptr, indices, seeds, radius) -> np.ndarray:
     """Rows within graph distance ``radius`` and ``2 radius`` of each seed: an array (2, seeds). Breadth-first
-    over all seeds at once on (seed, row) pairs, so the work is the balls' size, not the matrix's."""
+    over all seeds at once on (seed, row) keys, expanding only each step's new rows, so the work is the balls'
+    size times the degree, not the matrix's."""
     n = indptr.size - 1
-    seed_of, row = np.arange(seeds.size), np.asarray(seeds, dtype=np.int64)
+    ball = frontier = np.sort(np.arange(seeds.size) * n + seeds)
     out = []
     for step in range(1, 2 * radius + 1):
+        seed_of, row = frontier // n, frontier % n
         start, count = indptr[row], indptr[row + 1] - indptr[row]
         within = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
-        key = np.unique(np.concatenate([seed_of * n + row, np.repeat(seed_of, count) * n
-                                        + indices[np.repeat(start, count) + within]]))
-        seed_of, row = key // n, key % n
+        reached = np.unique(np.repeat(seed_of, count) * n + indices[np.repeat(start, count) + within])
+        frontier = reached[~np.isin(reached, ball, assume_unique=True)]
+        ball = np.union1d(ball, frontier)
         if step in (radius, 2 * radius):
-            out.append(np.bincount(seed_of, minlength=seeds.size))
+            out.append(np.bincount(ball // n, minlength=seeds.size))
     return np.array(out, dtype=float)
 
 

@@ -120,7 +120,7 @@ def sequence(methods, names, scales, frames, extra, tick) -> list:
                             row.pop("x", None)
                             row["peak_rss_mb"] = peak_rss_mb()
                             if k:
-                                rows.append(tag(row, study="foreign", mode="sequence", frame=k))
+                                rows.append(tag(row, study="foreign", mode="sequence", frame=k, scale=n))
                                 tick()
                 finally:
                     for s in solvers.values():
@@ -136,9 +136,10 @@ def table(res, mode) -> str:
     rows = [r for r in res.rows["foreign"] if r.get("mode") == mode and not r.get("first_call")]
     if not rows:
         return "(none in this run)"
-    by = cells(rows, "case", "n", "method")
+    size = "scale" if mode == "sequence" else "n"        # a moving free surface changes N frame by frame
+    by = cells(rows, "case", size, "method")
     methods = res.methods("foreign")
-    keys = list(dict.fromkeys((r["case"], r["n"]) for r in rows))
+    keys = list(dict.fromkeys((r["case"], r[size]) for r in rows))
     body = []
     for case, n in keys:
         line = [case, n_label(n)]
@@ -221,8 +222,8 @@ class Foreign(Study):
             "solve of each method at each N is reported below as its first call.",
             table(res, "single"),
             f"Sequence mode: {meta.get('frames', '?')} more frames per case with new values on one persistent KSP "
-            f"per PETSc method ({changes}: a new pattern every frame, so a new Mat); pyamg and AMGCL rebuild. "
-            "Median ms per frame (iterations).",
+            f"per PETSc method ({changes}: a new pattern every frame, so a new Mat, its N about the one shown); "
+            "pyamg and AMGCL rebuild. Median ms per frame (iterations).",
             table(res, "sequence"),
             "First call in the process (the warm-up solve) against the later single solves of the same case:",
             first_calls(res),
