@@ -29,7 +29,7 @@ def assemble(da, contrast, seed):
     """The operator on the DMDA's grid, rows inserted by stencil (each rank its own)."""
     nx, ny = da.getSizes()
     wx, wy, edge = face_weights(inclusions(nx, ny, contrast, seed))
-    A = da.createMatrix()
+    A = da.createMat()
     row, col = PETSc.Mat.Stencil(), PETSc.Mat.Stencil()
     (x0, x1), (y0, y1) = da.getRanges()
     for j in range(y0, y1):

@@ -9,9 +9,9 @@ from petsc4py import PETSc
 
 from petsc_htp.bench import main, store
 from petsc_htp.bench.foreigncases import CASES, pyamg_cases
+from petsc_htp.bench.studies.foreign import bare_frame
 from petsc_htp.petscmat import frame_mat, frame_vec
 from petsc_htp.scenes import foreign, meshes
-from petsc_htp.scenes.generator import Frame
 from petsc_htp.twolevel import sizing
 from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, aggregates, decoupled_rows
 from petsc_htp.twolevel.graphshape import graph_shape
@@ -20,15 +20,10 @@ from petsc_htp.twolevel.leaves import choose_leaves
 _PREFIXES = itertools.count()
 
 
-def _frame(A, b):
-    n = A.shape[0]
-    return Frame(A=A, b=b, rho=np.ones(n), coords=np.zeros((n, 2)), grid_shape=(n, 1), perm=np.arange(n), params={})
-
-
 def solve(A, b, ksp_type="cg", mat=None, ksp=None, **opts):
     """HTPPC as it comes on ``A`` (null space attached where A's row sums vanish) under a fresh prefix, or on the
     given ``ksp``; (reason, iterations, true relres, ksp, mat)."""
-    mat = mat or frame_mat(_frame(A, b), PETSc.COMM_SELF)
+    mat = mat or frame_mat(bare_frame(A, b, ""), PETSc.COMM_SELF)
     if ksp is None:
         prefix = f"fo{next(_PREFIXES)}_"
         db = PETSc.Options(prefix)
@@ -39,7 +34,7 @@ def solve(A, b, ksp_type="cg", mat=None, ksp=None, **opts):
         ksp.setOptionsPrefix(prefix)
         ksp.setOperators(mat, mat)
         ksp.setFromOptions()
-    rhs = frame_vec(_frame(A, b), mat)
+    rhs = frame_vec(bare_frame(A, b, ""), mat)
     x = rhs.duplicate()
     x.set(0.0)
     ksp.solve(rhs, x)
@@ -183,13 +178,31 @@ def test_foreign_study_quick(tmp_path):
     assert main(["--quick", "--out", str(out), "--studies", "foreign", "--methods", "cg_htp", "cg_icc",
                  "amgcl_ce500", "--foreign-cases", "dmda2d", "free_surface", "--threads", "1", "--no-progress"]) == 0
     rows = store.read_jsonl(store.study_path(out, "foreign"))
-    single = [r for r in rows if r["mode"] == "single" and not r.get("first_call")]
+    single = [r for r in rows if r["mode"] == "single"]
     assert {(r["case"], r["method"]) for r in single} >= {("dmda2d", "cg_htp"), ("free_surface", "amgcl_ce500")}
     assert all(r["ok"] and r["relres_proj"] <= 1e-7 for r in rows if r["method"] != "cg_icc"), \
         [r for r in rows if not r["ok"]]
     seq = [r for r in rows if r["mode"] == "sequence" and r["case"] == "free_surface"]
     assert len({r["n"] for r in seq if r["method"] == "cg_htp"}) == 2    # the liquid moved: new patterns
-    assert any(r.get("first_call") for r in rows)
+    fresh = {(r["case"], r["method"]): r for r in rows if r["mode"] == "fresh"}
+    assert set(fresh) == {(c, m) for c in ("dmda2d", "free_surface") for m in ("cg_htp", "cg_icc", "amgcl_ce500")}
+    assert all(r["ok"] and r["peak_rss_mb"] >= r["baseline_mb"] > 0 and r["import_ms"] > 0 for r in fresh.values())
     report = (out / "report.md").read_text()
-    assert "## Matrices from other programs" in report and "first call" in report
+    assert "## Matrices from other programs" in report and "first call of a fresh Python process" in report
     assert (out / "foreign.png").stat().st_size > 0
+
+
+def test_the_dmda_example_runs_with_htppc_from_the_command_line():
+    """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC chosen by options only."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "examples" / "dmda_poisson.py"
+    proc = subprocess.run([sys.executable, str(script), "-n", "100", "-ksp_type", "cg", "-ksp_rtol", "1e-8",
+                           "-ksp_norm_type", "unpreconditioned", "-pc_type", "python", "-pc_python_type",
+                           "petsc_htp.HTPPC", "-ksp_view"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    its = int(proc.stdout.split("iterations:")[1].split()[0])
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert its <= 40 and relres <= 1e-8 and "leaves: aggregation" in proc.stdout and "graph: 2-D" in proc.stdout

@@ -66,15 +66,17 @@ def heatmap(ax, values, labels, rows, cols, cmap="viridis"):
     return im
 
 
+def _grouped(methods, groups, w, h) -> tuple:
+    """A figure for grouped bars: (figure, axes, a colour per method, bar width, group positions)."""
+    fig, ax = figure(w, h)
+    return fig, ax[0, 0], colors(methods), 0.8 / max(len(methods), 1), np.arange(groups)
+
+
 def time_bars(res, out, study, name, title) -> str:
     """Grouped bars per N: mean total ms per method of ``study``'s rows, the setup part hatched (log axis)."""
     methods, scales = res.methods(study), res.scales(study)
     by = cells(res.rows[study], "method", "n")
-    color = colors(methods)
-    fig, ax = figure(1.6 + 1.3 * len(scales), 4.2)
-    ax = ax[0, 0]
-    width = 0.8 / max(len(methods), 1)
-    x = np.arange(len(scales))
+    fig, ax, color, width, x = _grouped(methods, len(scales), 1.6 + 1.3 * len(scales), 4.2)
     for i, m in enumerate(methods):
         total = np.array([value(by.get((m, n))) for n in scales])
         setup = np.array([value(by.get((m, n)), "setup_ms") for n in scales])
@@ -95,11 +97,7 @@ def foreign_bars(rows, methods, out, name) -> str:
     """Grouped bars per case (and N): median setup + solve ms of each method, failures left blank (log axis)."""
     by = cells(rows, "case", "n", "method")
     keys = list(dict.fromkeys((r["case"], r["n"]) for r in rows))
-    color = colors(methods)
-    fig, ax = figure(2.0 + 0.9 * len(keys), 4.4)
-    ax = ax[0, 0]
-    width = 0.8 / max(len(methods), 1)
-    x = np.arange(len(keys))
+    fig, ax, color, width, x = _grouped(methods, len(keys), 2.0 + 0.9 * len(keys), 4.4)
     for i, m in enumerate(methods):
         total = np.array([value(by.get((c, n, m)), "total_ms", "median") for c, n in keys])
         ax.bar(x - 0.4 + (i + 0.5) * width, total, width, color=color[m], label=m)

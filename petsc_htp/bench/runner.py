@@ -202,14 +202,13 @@ def peak_rss_mb() -> float:
     return comm.tompi4py().allreduce(mine, op=MPI.MAX)
 
 
-def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None, keep_warmup=False) -> list:
+def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
     """Solve every problem with every method; one row each, frame by frame.
 
     Each frame is solved by all methods in turn, so a machine whose speed drifts during the
     run slows every method alike. The options stay loaded for the whole list; with ``warmup``
     the first problem of every N is solved once more by each method beforehand and that solve
-    is discarded, or with ``keep_warmup`` kept as a row marked ``first_call`` (the method's first solve in
-    the process when no study ran before). ``tick()`` is called after every recorded solve.
+    is discarded. ``tick()`` is called after every recorded solve.
     """
     loaded, failed = [], {}
     try:
@@ -228,9 +227,7 @@ def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=la
                     rows.append(exception_row(method, problem, failed[method.name]))
                 elif warmup and (method.name, problem.n) not in warmed:
                     warmed.add((method.name, problem.n))
-                    first = _solve(method, method.prefix, problem, False)
-                    if keep_warmup:
-                        rows.append({**first, "first_call": True})
+                    _solve(method, method.prefix, problem, False)
                 if method.name not in failed:
                     rows.append(_solve(method, method.prefix, problem, monitor))
                 tick()

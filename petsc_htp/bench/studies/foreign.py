@@ -1,8 +1,9 @@
 """Matrices from other programs (:mod:`petsc_htp.bench.foreigncases`): single solves and sequences.
 
 Single-solve mode: each case's first frame, a fresh Mat (nothing attached but the null space a Neumann matrix
-has) and a fresh KSP, the whole setup in the time; the first solve of each method at each N, in a process that
-has solved nothing else yet, is reported apart (``first_call``). Sequence mode: later frames of the same case
+has) and a fresh KSP, the whole setup in the time, after one warm-up solve per method and N; and the same solve
+as the first call of a fresh process (:mod:`petsc_htp.bench.fresh`), which also gives each method's own peak
+memory. Sequence mode: later frames of the same case
 through one persistent KSP per PETSc method (new values in the same Mat; for the free surface, whose pattern
 changes, a new Mat each frame), pyamg and AMGCL rebuilding. Methods take turns frame by frame.
 """
@@ -24,7 +25,7 @@ CASE_NAMES = Size("foreign_cases", list(CASES), ["dmda2d", "dmda3d", "free_surfa
                   "cases of the foreign study", kind=str)
 
 
-def _frame(A, b, case):
+def bare_frame(A, b, case):
     """A bare :class:`~petsc_htp.scenes.Frame` around ``A``, ``b``."""
     from ...scenes.generator import Frame
 
@@ -36,9 +37,9 @@ def problems(names, scales, examples=True) -> list:
     """Frame 0 of every case at every N, then PyAMG's examples; nothing attached."""
     from ..cases import Problem
 
-    out = [Problem(_frame(*CASES[c](n, 0), c), case=c, attach=False) for n in scales for c in names]
+    out = [Problem(bare_frame(*CASES[c](n, 0), c), case=c, attach=False) for n in scales for c in names]
     if examples:
-        out += [Problem(_frame(A, b, c), case=c, attach=False) for c, (A, b) in pyamg_cases().items()]
+        out += [Problem(bare_frame(A, b, c), case=c, attach=False) for c, (A, b) in pyamg_cases().items()]
     return out
 
 
@@ -57,7 +58,7 @@ class _Persistent:
         from ...methods import reason_name
         from ...petscmat import frame_mat, frame_vec
 
-        frame = _frame(A, b, "")
+        frame = bare_frame(A, b, "")
         pattern = (A.indptr.tobytes(), A.indices.tobytes())
         if self.mat is not None and pattern == self.pattern:
             self.mat.setValuesCSR(A.indptr, A.indices, A.data)
@@ -106,7 +107,7 @@ def sequence(methods, names, scales, frames, extra, tick) -> list:
                 try:
                     for k in range(frames + 1):
                         A, b = CASES[case](n, k)
-                        problem = Problem(_frame(A, b, case), case=case, attach=False)
+                        problem = Problem(bare_frame(A, b, case), case=case, attach=False)
                         for m in methods:
                             try:
                                 if m.is_petsc:
@@ -133,7 +134,7 @@ def sequence(methods, names, scales, frames, extra, tick) -> list:
 
 def table(res, mode) -> str:
     """Median ms (setup + solve), iterations and the largest true relres per case and method."""
-    rows = [r for r in res.rows["foreign"] if r.get("mode") == mode and not r.get("first_call")]
+    rows = [r for r in res.rows["foreign"] if r.get("mode") == mode]
     if not rows:
         return "(none in this run)"
     size = "scale" if mode == "sequence" else "n"        # a moving free surface changes N frame by frame
@@ -156,28 +157,42 @@ def table(res, mode) -> str:
     return md_table(["case", "N"] + methods, body, left=2)
 
 
-def first_calls(res) -> str:
-    """Each method's first solve in the process (setup + solve ms), against its later median on the same case."""
-    rows = res.rows["foreign"]
-    first = [r for r in rows if r.get("first_call")]
-    if not first:
+def fresh(methods, names, scales, threads, tick) -> list:
+    """Frame 0 of every case solved once by every method, each in a fresh process (:mod:`petsc_htp.bench.fresh`)."""
+    import tempfile
+    from pathlib import Path
+
+    from ..fresh import run, save
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in scales:
+            for case in names:
+                path = Path(tmp) / "frame.npz"
+                save(path, *CASES[case](n, 0))
+                for m in methods:
+                    rows.append(tag(run(path, m.name, case, threads or 1), study="foreign", mode="fresh", scale=n))
+                    tick()
+    return rows
+
+
+def fresh_table(res) -> str:
+    """Each method's solve as a fresh process's first call: setup + solve ms, and peak memory above the process's
+    resident memory before the solve (MiB)."""
+    rows = [r for r in res.rows["foreign"] if r.get("mode") == "fresh"]
+    if not rows:
         return "(none in this run)"
-    later = cells([r for r in rows if r.get("mode") == "single" and not r.get("first_call")], "case", "n", "method")
-    body = [[r["method"], r["case"], n_label(r["n"]), ms(r["total_ms"]) if r.get("ok") else f"✗ {r['failure']}",
-             ms(later.get((r["case"], r["n"], r["method"]), {}).get("total_ms", {}).get("median"))] for r in first]
-    return md_table(["method", "case", "N", "first call ms", "later ms"], body, left=3)
-
-
-def memory(res) -> str:
-    """Peak resident memory of the process after each method's single solves at each N (MiB)."""
-    rows = [r for r in res.rows["foreign"] if r.get("mode") == "single"]
-    peak = {}
-    for r in rows:
-        key = (r["method"], r["n"])
-        peak[key] = max(peak.get(key, 0.0), r.get("peak_rss_mb") or 0.0)
-    scales = sorted({n for _, n in peak})
-    body = [[m] + [f"{peak.get((m, n), float('nan')):.0f}" for n in scales] for m in res.methods("foreign")]
-    return md_table(["method"] + [f"N={n_label(n)}" for n in scales], body)
+    methods = res.methods("foreign")
+    by = {(r["case"], r["scale"], r["method"]): r for r in rows}
+    body = []
+    for case, n in dict.fromkeys((r["case"], r["scale"]) for r in rows):
+        line = [case, n_label(n)]
+        for m in methods:
+            r = by.get((case, n, m))
+            line.append("—" if r is None else f"✗ {r.get('failure')}" if not r.get("ok") else
+                        f"{ms(r['total_ms'])} / {r['peak_rss_mb'] - r['baseline_mb']:.0f}")
+        body.append(line)
+    return md_table(["case", "N"] + methods, body, left=2)
 
 
 class Foreign(Study):
@@ -186,7 +201,8 @@ class Foreign(Study):
     name = "foreign"
     help = ("matrices from other programs (DMDA with Dirichlet rows in 2-D/3-D, a moving free surface, rotated "
             "anisotropy, P1 FEM on triangles and tets, log-normal permeability, Neumann walls, PyAMG's examples): "
-            "single solves with fresh KSPs (first call reported) and sequences with persistent KSPs")
+            "single solves with fresh KSPs, as a fresh process's first call (with its peak memory), and sequences "
+            "with persistent KSPs")
     sizes = (SCALES, FRAMES, CASE_NAMES)
     readme_links = ((CHART, "foreign matrices"),)
 
@@ -196,7 +212,7 @@ class Foreign(Study):
 
     def expected_solves(self, ctx):
         s = ctx.settings
-        per_n = len(s["foreign_cases"]) * (1 + s["foreign_frames"])
+        per_n = len(s["foreign_cases"]) * (2 + s["foreign_frames"])
         return len(ctx.methods) * (len(s["foreign_scales"]) * per_n + len(pyamg_cases()))
 
     def measure(self, ctx, tick):
@@ -204,13 +220,12 @@ class Foreign(Study):
         bad = [c for c in s["foreign_cases"] if c not in CASES]
         if bad:
             raise ValueError(f"unknown foreign case(s) {', '.join(bad)}; the cases are {', '.join(CASES)}")
-        single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign",
-                           keep_warmup=True)
+        single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign")
         for row in single:
             row.setdefault("mode", "single")
         seq = sequence(ctx.methods, s["foreign_cases"], s["foreign_scales"], s["foreign_frames"], ctx.extra, tick) \
             if s["foreign_frames"] else []
-        return single + seq
+        return single + seq + fresh(ctx.methods, s["foreign_cases"], s["foreign_scales"], ctx.threads, tick)
 
     def section(self, res):
         meta = res.meta.get("foreign", {})
@@ -218,24 +233,23 @@ class Foreign(Study):
         return "\n\n".join([
             "## Matrices from other programs",
             "Single solves: each case's matrix handed over bare (a Neumann matrix with its null space), a fresh "
-            "Mat and KSP, setup (analysis included) + solve ms and median iterations in parentheses; the warm-up "
-            "solve of each method at each N is reported below as its first call.",
+            "Mat and KSP, setup (analysis included) + solve ms and median iterations in parentheses, after one "
+            "warm-up solve per method and N.",
             table(res, "single"),
             f"Sequence mode: {meta.get('frames', '?')} more frames per case with new values on one persistent KSP "
             f"per PETSc method ({changes}: a new pattern every frame, so a new Mat, its N about the one shown); "
             "pyamg and AMGCL rebuild. Median ms per frame (iterations).",
             table(res, "sequence"),
-            "First call in the process (the warm-up solve) against the later single solves of the same case:",
-            first_calls(res),
-            "Peak resident memory of the process (MiB, every method so far in one process, so an upper bound):",
-            memory(res),
+            "The same single solve as the first call of a fresh Python process (imports excluded): setup + solve ms "
+            "/ peak resident memory above the process's before the solve, MiB:",
+            fresh_table(res),
             image(CHART, "Foreign matrices"),
         ])
 
     def charts(self, res, out):
         from ..plotting import foreign_bars
 
-        rows = [r for r in res.rows["foreign"] if r.get("mode") == "single" and not r.get("first_call")]
+        rows = [r for r in res.rows["foreign"] if r.get("mode") == "single"]
         return [foreign_bars(rows, res.methods("foreign"), out, CHART)] if rows else []
 
     def summary(self, res):
