@@ -206,3 +206,14 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line():
     its = int(proc.stdout.split("iterations:")[1].split()[0])
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
     assert its <= 40 and relres <= 1e-8 and "leaves: aggregation" in proc.stdout and "graph: 2-D" in proc.stdout
+
+
+def test_amg_coarse_solve_of_aggregation_leaves_is_an_inner_krylov_solve():
+    """One GAMG V-cycle is too inexact on the coarse operator of aggregation leaves: the coarse solve is a GCR to
+    rtol 1e-3 preconditioned by GAMG, and the outer iterations stay those of the coarse LU."""
+    A, b = CASES["dmda3d"](27000, 0)
+    _, lu_its, _, _, _ = solve(A, b, htp_coarse_solver="lu")
+    reason, its, relres, ksp, _ = solve(A, b, htp_coarse_solver="gamg")
+    assert reason > 0 and relres <= 1e-8 and its <= lu_its + 2 <= 42, (its, lu_its)
+    assert "coarse solve: GCR to rtol 0.001 preconditioned by GAMG" in lines(ksp)
+    assert ksp.getPC().getPythonContext().setup.coarse.getKSP().getPC().getType() == "gamg"

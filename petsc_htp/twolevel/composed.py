@@ -478,7 +478,7 @@ class TwoLevelPC:
         if self.col_block > 1 and self.solver == "lu":     # block LU kernels: a third faster to factor and to apply
             self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
         if first:
-            defaults = sizing.coarse_options(self.dim, self.coll.size > 1, self.solver)
+            defaults = sizing.coarse_options(self.dim, self.coll.size > 1, self.solver, self.lay.leaves.kind)
             if self.col_block > 1:                  # BAIJ factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.coarse = configured_pc(self.comm, self.Eb or self.E, self.coarse_prefix, defaults)
@@ -674,6 +674,10 @@ class TwoLevelPC:
         kind = self.coarse.getType()
         if kind in ("gamg", "mg"):
             text = f"one {kind.upper()} V-cycle ({self.coarse.getMGLevels()} levels)"
+        elif kind == "ksp":
+            inner = self.coarse.getKSP()
+            text = (f"{inner.getType().upper()} to rtol {inner.getTolerances()[0]:g} preconditioned by "
+                    f"{inner.getPC().getType().upper()}")
         elif kind == "redundant":
             text = f"LU on each of the {self.coll.size} ranks (redundant)"
         else:
@@ -701,8 +705,11 @@ class TwoLevelPC:
 
 def _held(pc) -> int:
     """Values a coarse solver holds on this rank besides its operator: a factor's, or a multigrid hierarchy's
-    coarser operators and interpolations (0 for other PC types, such as PCREDUNDANT's gathered copy)."""
+    coarser operators and interpolations, also inside a PCKSP (0 for other PC types, such as PCREDUNDANT's
+    gathered copy)."""
     kind = pc.getType()
+    if kind == "ksp":
+        return _held(pc.getKSP().getPC())
     if kind in FACTOR_PCS:
         return int(pc.getFactorMatrix().getInfo()["nz_used"])
     if kind not in ("gamg", "mg"):
