@@ -3,7 +3,8 @@
 Loads A (and b) from the ``.npz`` that :func:`save` wrote, imports what the method needs, solves once as the
 benchmark does (:func:`petsc_htp.bench.runner._solve`) and prints one JSON row on its last line with ``import_ms``
 (petsc4py and the package, before any solve), ``baseline_mb`` (resident memory before the solve) and
-``peak_rss_mb`` (after it): the first call a user's program pays, and the memory the solve itself takes.
+``peak_rss_mb`` (the peak from then on: Linux lets a process start its peak over): the first call a user's
+program pays, and the memory the solve itself takes.
 """
 from __future__ import annotations
 
@@ -23,8 +24,26 @@ def save(path, A, b):
     np.savez(path, data=A.data, indices=A.indices, indptr=A.indptr, shape=A.shape, b=b)
 
 
-def _rss_mb() -> float:
+def _status_mb(field) -> float:
+    """``VmRSS`` or ``VmHWM`` (peak) of this process from /proc, in MiB (the peak since start without /proc)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _reset_peak():
+    """Start the peak resident memory (VmHWM) over from the current one (Linux: /proc/self/clear_refs), so that
+    the peak after the solve is the solve's and not the imports'."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+    except OSError:
+        pass
 
 
 def main(argv=None) -> int:
@@ -48,14 +67,15 @@ def main(argv=None) -> int:
     A = sp.csr_matrix((z["data"], z["indices"], z["indptr"]), shape=tuple(z["shape"]))
     method = resolve_method(args.method)
     loaded = load(method, htp_options(threads=args.threads)) if method.is_petsc else None
-    baseline = _rss_mb()
+    _reset_peak()
+    baseline = _status_mb("VmRSS")
     try:
         row = _solve(method, method.prefix, Problem(bare_frame(A, z["b"], args.case), case=args.case, attach=False),
                      False)
     finally:
         if loaded is not None:
             loaded.__exit__(None, None, None)
-    row.update(import_ms=import_ms, baseline_mb=baseline, peak_rss_mb=_rss_mb())
+    row.update(import_ms=import_ms, baseline_mb=baseline, peak_rss_mb=_status_mb("VmHWM"))
     print(json.dumps(row))
     return 0
 

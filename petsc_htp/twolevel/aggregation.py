@@ -4,8 +4,8 @@ A coupling a_ij is strong when |a_ij| >= theta sqrt(|a_ii a_jj|) (smoothed aggre
 ``pyamg.amg_core.symmetric_strength_of_connection``). Standard aggregation (``amg_core.standard_aggregation``:
 a root and its strong neighbours, then the rest joined to a neighbouring aggregate) groups the rows; the
 aggregates' own graph, with each pair's couplings summed in magnitude, is aggregated again, ``passes`` times in
-all, so a leaf holds 10-25 rows that are strongly coupled to each other. Everything is O(nnz) and compiled (the
-kernels, scipy's sparse conversions and RCM): no Python loop over rows.
+all, so a leaf holds 10-40 rows that are strongly coupled to each other. Everything is O(nnz) and compiled (the
+kernels and scipy's sparse conversions): no Python loop over rows.
 
 Rows are treated by what couples them:
 
@@ -22,9 +22,8 @@ import numpy as np
 import scipy.sparse as sp
 from pyamg import amg_core
 
-
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
-PASSES = 2              # aggregation passes: 2 gives leaves of 10-25 rows on 2-D and 3-D Poisson-type graphs
+PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-D and 3-D Poisson-type graphs
 DECOUPLED_LEAF = 64     # rows per leaf of decoupled rows
 
 
