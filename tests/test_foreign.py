@@ -192,17 +192,24 @@ def test_foreign_study_quick(tmp_path):
     assert (out / "foreign.png").stat().st_size > 0
 
 
-def test_the_dmda_example_runs_with_htppc_from_the_command_line():
-    """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC chosen by options only."""
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
+    """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC chosen by options only, on 1 and 2 ranks
+    (each rank aggregates its own rows)."""
+    import shutil
     import subprocess
     import sys
     from pathlib import Path
 
     script = Path(__file__).resolve().parent.parent / "examples" / "dmda_poisson.py"
-    proc = subprocess.run([sys.executable, str(script), "-n", "100", "-ksp_type", "cg", "-ksp_rtol", "1e-8",
-                           "-ksp_norm_type", "unpreconditioned", "-pc_type", "python", "-pc_python_type",
-                           "petsc_htp.HTPPC", "-ksp_view"], capture_output=True, text=True, timeout=300)
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin:/usr/local/bin")
+    assert mpiexec, "mpiexec not found (the Makefile installs MPICH)"
+    proc = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(script), "-n", "100", "-ksp_type", "cg",
+                           "-ksp_rtol", "1e-8", "-ksp_norm_type", "unpreconditioned", "-pc_type", "python",
+                           "-pc_python_type", "petsc_htp.HTPPC", "-ksp_view"], capture_output=True, text=True,
+                          timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert f"{ranks} MPI process" in proc.stdout
     its = int(proc.stdout.split("iterations:")[1].split()[0])
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
     assert its <= 40 and relres <= 1e-8 and "leaves: aggregation" in proc.stdout and "graph: 2-D" in proc.stdout

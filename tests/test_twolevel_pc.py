@@ -39,7 +39,10 @@ def solve(A, b, **opts):
     base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 2000,
             "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_variant": "twolevel",
             "htp_direct_max": 0}          # the two-level method at every size (the small-matrix factor: test_foreign)
-    for k, v in {**base, **opts}.items():
+    merged = {**base, **opts}
+    if merged["htp_variant"] == "paper":
+        merged.pop("htp_direct_max")                  # a twolevel option: the paper variant would leave it unused
+    for k, v in merged.items():
         if v is not None:
             db.setValue(k, v)
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
