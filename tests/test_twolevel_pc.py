@@ -40,8 +40,8 @@ def solve(A, b, **opts):
             "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_variant": "twolevel",
             "htp_direct_max": 0}          # the two-level method at every size (the small-matrix factor: test_foreign)
     merged = {**base, **opts}
-    if merged["htp_variant"] == "paper":
-        merged.pop("htp_direct_max")                  # a twolevel option: the paper variant would leave it unused
+    if merged["htp_variant"] == "paper" or merged["pc_type"] != "python":
+        merged.pop("htp_direct_max")                  # a twolevel option: anything else would leave it unused
     for k, v in merged.items():
         if v is not None:
             db.setValue(k, v)
