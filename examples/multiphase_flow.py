@@ -6,7 +6,7 @@
     python examples/multiphase_flow.py -compare options/cg_gamg.opts,options/cg_icc.opts
     python examples/multiphase_flow.py -dim 3 -options_file cg_htp -animate      # a drop in a 48^3 box
 
-Method files are loaded by :class:`petsc_htp.methods.Loaded` (a shipped
+Method files are loaded by :class:`petsc_htp.bench.harness.Loaded` (a shipped
 name such as ``cg_gamg`` works too); the simulation itself is
 :func:`petsc_htp.sim.simulation.simulate`.
 
@@ -44,7 +44,7 @@ try:
     import petsc_htp  # noqa: F401  (installed)
 except ImportError:                # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
-from petsc_htp.methods import Loaded, init_petsc  # noqa: E402
+from petsc_htp.bench.harness import Loaded, init_petsc  # noqa: E402
 
 OPTION_FILES = init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402

@@ -18,7 +18,7 @@ Without ``-options_file`` and without ``-pc_type`` the method is
 ``options/common.opts`` + ``options/cg_htp.opts``. Everything else is ordinary
 PETSc (``-ksp_view``, ``-log_view``, ``-htp_checkpoint ...``).
 
-``-options_file`` arguments are loaded by :class:`petsc_htp.methods.Loaded`
+``-options_file`` arguments are loaded by :class:`petsc_htp.bench.harness.Loaded`
 (PETSc's own ``-options_file``, with the ``options/common.opts`` include
 resolved from any working directory, a method name such as ``cg_gamg`` works
 too); options given on the command line win over the files. The project's
@@ -39,7 +39,7 @@ try:
     import petsc_htp  # noqa: F401  (installed)
 except ImportError:                # run from a checkout without installing
     sys.path.insert(0, str(ROOT))
-from petsc_htp.methods import Loaded, method_names, solve, init_petsc  # noqa: E402
+from petsc_htp.bench.harness import Loaded, method_names, solve, init_petsc  # noqa: E402
 
 OPTION_FILES = init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402

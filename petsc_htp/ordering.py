@@ -8,7 +8,7 @@ from .morton import morton_permutation, quantized_morton_codes
 METHODS = ("auto", "morton", "rcm", "natural")
 
 
-def _check_square(A):
+def check_square(A):
     """Return ``A`` as CSR, or raise ValueError unless it is square sparse."""
     if not sp.issparse(A) or A.ndim != 2 or A.shape[0] != A.shape[1]:
         raise ValueError(f"A must be a square scipy sparse matrix, got {type(A).__name__} "
@@ -16,7 +16,7 @@ def _check_square(A):
     return sp.csr_matrix(A)
 
 
-def _check_coords(coords, n):
+def check_coords(coords, n):
     """Return ``coords`` as a float (n, 2) or (n, 3) array, or raise ValueError."""
     pts = np.asarray(coords, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[0] != n or pts.shape[1] not in (2, 3):
@@ -32,7 +32,7 @@ def rcm_permutation(A):
     numpy.ndarray of int64
         ``p`` such that ``A[p][:, p]`` has reduced bandwidth.
     """
-    A = _check_square(A)
+    A = check_square(A)
     return reverse_cuthill_mckee(A, symmetric_mode=True).astype(np.int64)
 
 
@@ -68,9 +68,9 @@ def choose_ordering(A, coords=None, method="auto"):
     if method not in METHODS:
         raise ValueError(f"unknown ordering method {method!r}; expected one of "
                          f"{', '.join(METHODS)}")
-    A = _check_square(A)
+    A = check_square(A)
     n = A.shape[0]
-    pts = None if coords is None else _check_coords(coords, n)
+    pts = None if coords is None else check_coords(coords, n)
     if method == "natural":
         return np.arange(n, dtype=np.int64), "natural"
     if method == "rcm" or (method == "auto" and pts is None):
@@ -93,7 +93,7 @@ def permuted_pattern(A, perm):
         ``Ap.data == A.data[data_map]``: a later matrix with ``A``'s pattern is permuted by
         this gather alone.
     """
-    A = _check_square(A)
+    A = check_square(A)
     if not A.has_canonical_format:
         raise ValueError("A must be in canonical CSR form (sorted indices, no duplicates)")
     ids = sp.csr_matrix((np.arange(1, A.nnz + 1, dtype=np.float64), A.indices, A.indptr), shape=A.shape)

@@ -1,9 +1,8 @@
-"""PETSc integration: HTP as a ``PCPYTHON`` preconditioner.
+"""PETSc integration: HTPPC, a ``PCPYTHON`` preconditioner.
 
 Use it from the command line of any petsc4py program::
 
-    -ksp_type cg -ksp_norm_type unpreconditioned \\
-    -pc_type python -pc_python_type petsc_htp.HTPPC [-htp_checkpoint model.pt ...]
+    -ksp_type cg -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC
 
 or in code::
 
@@ -11,60 +10,48 @@ or in code::
     pc.setType("python")
     pc.setPythonContext(petsc_htp.HTPPC())
 
-Under MPI, wrap it in block Jacobi so that every rank preconditions its own
-diagonal block (a SeqAIJ matrix on ``COMM_SELF``)::
+The default (the two-level method) takes a matrix on any number of ranks as it is; the paper's variant needs
+one rank per block (``-pc_type bjacobi -sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC``, whose
+options then carry the ``sub_`` prefix).
 
-    -pc_type bjacobi -sub_pc_type python -sub_pc_python_type petsc_htp.HTPPC
+Like Firedrake's preconditioners, :class:`HTPPC` is configured only through its options prefix,
+``pc.getOptionsPrefix() + "htp_"``: the options of :class:`~petsc_htp.pcoptions.HTPOptions` (``-help`` lists
+them with their defaults), read in ``setFromOptions`` and again in ``setUp`` (a PCPYTHON context may be set up
+without ``setFromOptions`` ever running). Geometry can be supplied with :func:`attach`; without it the leaves
+come from the matrix alone.
 
-(the options are then read with the ``sub_`` prefix, e.g. ``-sub_htp_checkpoint``).
-
-Like Firedrake's preconditioners, :class:`HTPPC` is configured only through its
-options prefix, ``pc.getOptionsPrefix() + "htp_"``:
-
-the options of :class:`~petsc_htp.pcoptions.HTPOptions` (``-help`` lists them
-with their defaults). They are read in ``setFromOptions`` and again in
-``setUp`` (a PCPYTHON context may be set up without ``setFromOptions`` ever
-running). Geometry can be supplied with :func:`attach`; without it the
-features come from the matrix alone.
-
-Setup has two steps, like Firedrake's ``initialize``/``update``: the analysis
-(ordering, partition, structure; :mod:`petsc_htp.variants`) runs when the
-nonzero pattern, the attached coordinates or a pattern option changed; the
-numeric step (network, factors) runs when only the values did. PETSc calls
-``setUp`` only when the operator's state changed, so ``-ksp_reuse_preconditioner``
-skips both. ``PETSc.Log`` events ``HTPSetup`` and ``HTPApply`` appear in
-``-log_view``.
+Setup has two steps, like Firedrake's ``initialize``/``update``: the analysis (leaves, structure;
+:mod:`petsc_htp.variants`) runs when the nonzero pattern, the attached coordinates or a pattern option changed;
+the numeric step (factors, coarse space, products) when only the values did. PETSc calls ``setUp`` only when the
+operator's state changed, so ``-ksp_reuse_preconditioner`` skips both. ``-log_view`` shows an event per phase
+(:mod:`petsc_htp.events`), ``-ksp_view`` the inner solvers.
 """
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
-import torch
 from petsc4py import PETSc
 
+from .collective import Collective
+from .events import event
 from .pcoptions import HTPOptions
+from .pcview import view
 from .validation import check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, attach, attached, local_rows
-from .variants import VARIANTS
+from .variants import variant_class
 
 __all__ = ["HTPPC", "attach"]
 
-_EVENTS = {}
-
-
-def _event(name: str) -> PETSc.Log.Event:
-    """The PETSc log event ``name`` (registered once per process)."""
-    if name not in _EVENTS:
-        _EVENTS[name] = PETSc.Log.Event(name)
-    return _EVENTS[name]
-
 
 def set_torch_threads(n: int) -> int | None:
-    """Set torch's process-wide CPU thread count to ``n``; return the previous count when it changed."""
-    before = torch.get_num_threads()
-    if n == before:
+    """Set torch's process-wide CPU thread count to ``n`` where torch is loaded; return the previous count when it
+    changed (torch is never imported here: the default variant runs without it)."""
+    torch = sys.modules.get("torch")
+    if torch is None or n == torch.get_num_threads():
         return None
+    before = torch.get_num_threads()
     torch.set_num_threads(n)
     return before
 
@@ -90,26 +77,12 @@ class HTPPC:
     """
 
     def __init__(self):
-        self.opts = HTPOptions()
-        self.variant = None
-        self.analysis = None
-        self.setup = None
-        self.analysis_count = 0
-        self.numeric_count = 0
-        self.setup_ms = float("nan")
-        self.fallback_active = False
-        self.fallback_reason = ""
-        self.n = None
-        self.inv_diag = None
-        self._pattern = None
-        self._values = None
-        self._coords = None
-        self._csr = (None, None, None)
-        self._guess = None
-        self.threads_note = ""
-        self._help_shown = False
-        self._ev_setup = _event("HTPSetup")
-        self._ev_apply = _event("HTPApply")
+        self.opts, self.variant, self.analysis, self.setup = HTPOptions(), None, None, None
+        self.analysis_count = self.numeric_count = 0
+        self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
+        self.n = self.inv_diag = self._pattern = self._values = self._coords = self._guess = None
+        self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
+        self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
     @staticmethod
     def _opt(pc) -> str:
@@ -120,10 +93,10 @@ class HTPPC:
         self.opts = HTPOptions.from_petsc(pc.getOptionsPrefix() or "")
         if not self._help_shown and PETSc.Options().hasName("help"):
             self._help_shown = True
-            head = f"HTPPC options (learned Hierarchical Transformer Preconditioner, prefix {self._opt(pc)}) -----"
+            head = (f"HTPPC options (prefix {self._opt(pc)}; default: the two-level preconditioner, no network; "
+                    "-htp_variant paper: the paper's Hierarchical Transformer Preconditioner) -----")
             PETSc.Sys.Print("\n".join([head] + self.opts.help_lines(self._opt(pc))), comm=pc.getComm())
 
-    # ------------------------------------------------------------ setup
     def setUp(self, pc):
         """Analyse a new pattern, then run the numeric step for new values (each only when needed)."""
         self.prefix = pc.getOptionsPrefix() or ""
@@ -136,9 +109,7 @@ class HTPPC:
         self._ev_setup.begin()
         try:
             self._values = None
-            changed = set_torch_threads(opts.threads)
-            if changed is not None:
-                self.threads_note = f"set process-wide to {opts.threads} by {self._opt(pc)}threads (was {changed})"
+            self._threads(opts)
             check_size(P)
             with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
                 check_matrix(P, A)                                     # a named error on every rank, or none
@@ -147,6 +118,12 @@ class HTPPC:
             self._values = values
         finally:
             self._ev_setup.end()
+
+    def _threads(self, opts):
+        """torch's threads as ``-htp_threads`` says, where torch runs."""
+        changed = set_torch_threads(opts.threads)
+        if changed is not None:
+            self.threads_note = f"set process-wide to {opts.threads} by -{self.prefix}htp_threads (was {changed})"
 
     def _setup(self, P, A, coords, density, opts):
         """Analyse when the pattern, coordinates or a pattern option changed, then the numeric step.
@@ -162,11 +139,12 @@ class HTPPC:
                        and _same_array(nonzero, self._csr[2])))
         if not new:
             new = self.variant.moved(self.analysis, A)             # values that call for new leaves
-        if _any_rank(P, new):
+        if Collective(P.getComm()).any(new):
             check_symmetry(P)
             variant = self.variant
             if variant is None or variant.opts.pattern_key() != opts.pattern_key():
-                variant = VARIANTS[opts.variant](opts, self.prefix)
+                variant = variant_class(opts.variant)(opts, self.prefix)
+                self._threads(opts)
             variant.opts = opts
             analysis = variant.analyse(P, A, coords)
             t0 = time.perf_counter()
@@ -208,7 +186,6 @@ class HTPPC:
             PETSc.Sys.Print(f"{who}: WARNING: {reason}; Krylov methods will break down "
                             f"(use {self._opt(pc)}fallback jacobi)", comm=pc.getComm())
 
-    # ------------------------------------------------------------ apply
     def apply(self, pc, x, y):
         """y = M x (or D^-1 x under an active Jacobi fallback)."""
         self._ev_apply.begin()
@@ -243,31 +220,26 @@ class HTPPC:
             ksp.setInitialGuessNonzero(self._guess)
             self._guess = None
 
-    # ------------------------------------------------------------- view
     def view(self, pc, viewer):
-        """ASCII description: variant, model, the setup's own lines, setups, checks, fallback."""
-        if viewer.getType() != PETSc.Viewer.Type.ASCII:
-            return
-        opts = self.opts
-        out = [f"HTP (Hierarchical Transformer Preconditioner), variant {opts.variant}"
-               + ("" if self.setup is not None else ": not set up yet")]
-        if self.variant is not None and self.variant.model:
-            out.append(f"  model: {self.variant.model}")
-        if self.setup is not None:
-            out += ["  " + line for line in self.setup.describe()]
-            out.append(f"  setups: {self.analysis_count} analyses (pattern), {self.numeric_count} numeric (values); "
-                       f"torch threads: {torch.get_num_threads()}"
-                       + (f" ({self.threads_note})" if self.threads_note else ""))
-            k = opts.probes
-            probe = f"{k} Rayleigh probe{'s' if k > 1 else ''}" if k else "no Rayleigh probe"
-            if self.fallback_active:
-                out.append(f"  fallback: jacobi ACTIVE ({self.fallback_reason}); applying D^-1")
-            elif self.fallback_reason:
-                out.append(f"  fallback: {opts.fallback}; WARNING: {self.fallback_reason}")
-            else:
-                out.append(f"  checks passed (finite, {probe}); fallback {opts.fallback} not needed")
-        for line in out:                        # one call per line: each gets the viewer's indentation
-            viewer.printfASCII(f"  {line}\n")
+        """ASCII description (:func:`petsc_htp.pcview.view`): what runs, the setup's own lines, checks, then the
+        inner solvers' own views, indented."""
+        if viewer.getType() == PETSc.Viewer.Type.ASCII:
+            view(self, viewer)
+
+    def getInnerPCs(self) -> dict:
+        """The inner PETSc solvers by role (leaf solver and coarse solver of the two-level method; the factor of a
+        small matrix; none for the paper's variant or before setup)."""
+        if self.setup is None or self.variant is None:
+            return {}
+        return self.variant.inner_pcs(self.setup)
+
+    def getLeafPC(self):
+        """The leaf solver's PC (the two-level method), else None."""
+        return self.getInnerPCs().get("leaf solver")
+
+    def getCoarsePC(self):
+        """The coarse solver's PC (the two-level method), else None."""
+        return self.getInnerPCs().get("coarse solver")
 
     def _free(self):
         """Free the analysis and its setups (PETSc objects included)."""
@@ -283,12 +255,6 @@ class HTPPC:
     def destroy(self, pc):
         """Free everything when PETSc destroys the PC."""
         self._free()
-
-
-def _any_rank(mat, flag) -> bool:
-    """``flag`` or'ed over the ranks of ``mat`` (every rank takes the same branch)."""
-    comm = mat.getComm()
-    return bool(flag) if comm.getSize() == 1 else bool(comm.tompi4py().allreduce(int(bool(flag))))
 
 
 def _same_array(a, b) -> bool:

@@ -4,10 +4,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from . import checkpoint
+from .training import checkpoint
+from .variants import VARIANTS
 
 ORDERINGS = ("auto", "aggregation", "morton", "graph", "rcm", "natural", "metis")
-VARIANTS = ("paper", "twolevel")
 COARSE = ("auto", "const", "eig", "learned")
 COARSE_SOLVERS = ("auto", "lu", "gamg")
 FALLBACKS = ("none", "jacobi")

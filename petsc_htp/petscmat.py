@@ -15,7 +15,7 @@ from scipy.sparse.csgraph import connected_components
 from .twolevel.nullspace import null_regions
 
 __all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace", "preallocated_aij",
-           "local_csr", "gathered"]
+           "local_csr", "gathered", "ghost_values"]
 
 COORDS_ATTR = "petsc_htp_coords"
 DENSITY_ATTR = "petsc_htp_density"
@@ -223,6 +223,23 @@ def gathered(vec) -> np.ndarray:
     finally:
         scatter.destroy()
         full.destroy()
+
+
+def ghost_values(mat, values, cols) -> np.ndarray:
+    """The entries ``cols`` (global rows, any rank's) of a Vec laid out like ``mat``'s rows whose local part is
+    ``values`` (one scatter)."""
+    owned = mat.createVecLeft()
+    owned.getArray()[:] = values
+    want, where = np.unique(cols, return_inverse=True)
+    ghost = PETSc.Vec().createSeq(want.size, comm=PETSc.COMM_SELF)
+    index = PETSc.IS().createGeneral(want.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+    scatter = PETSc.Scatter().create(owned, index, ghost, None)
+    try:
+        scatter.scatter(owned, ghost, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        return ghost.getArray().copy()[where]
+    finally:
+        for obj in (owned, ghost, index, scatter):
+            obj.destroy()
 
 
 def frame_mat(frame, comm=None):

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .collective import Collective
+
 ASYMMETRY = 1e-8        # |x^T A y - y^T A x| / (|x| |y| max_i sum_j |a_ij|) above this: not symmetric
 
 PROBLEMS = ("a rank without rows", "NaN or Inf entries", "empty rows", "missing or zero diagonal entries",
@@ -19,19 +21,6 @@ PROBLEMS = ("a rank without rows", "NaN or Inf entries", "empty rows", "missing 
 
 class MatrixError(ValueError):
     """The matrix handed to HTPPC cannot be preconditioned; the message names the problem (every rank's)."""
-
-
-def _reduce(comm, counts, first):
-    """Sum of ``counts`` and minimum of ``first`` over the ranks of ``comm`` (PETSc communicator)."""
-    if comm.getSize() == 1:
-        return counts, first
-    from mpi4py import MPI
-
-    mpi = comm.tompi4py()
-    total, lowest = np.empty_like(counts), np.empty_like(first)
-    mpi.Allreduce(counts, total, op=MPI.SUM)
-    mpi.Allreduce(first, lowest, op=MPI.MIN)
-    return total, lowest
 
 
 def check_size(mat) -> None:
@@ -61,7 +50,8 @@ def check_matrix(mat, rows) -> None:
            np.flatnonzero(d < 0)]
     counts = np.array([b.size for b in bad] + [rows.nnz], dtype=np.int64)
     first = np.array([b[0] + start if b.size else np.iinfo(np.int64).max for b in bad] + [0], dtype=np.int64)
-    counts, first = _reduce(mat.getComm(), counts, first)
+    coll = Collective(mat.getComm())
+    counts, first = coll.sum_array(counts), coll.min_array(first)
     if counts[-1] == 0:
         raise MatrixError(f"HTPPC got an empty matrix ({n_rows} x {n_cols} with no nonzeros)")
     for k, what in enumerate(PROBLEMS):

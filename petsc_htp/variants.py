@@ -6,7 +6,7 @@ options prefix, with
 - ``analyse(mat, A, coords)``: the per-pattern step (ordering, leaves, structure) on the PETSc Mat
   and ``A``, this rank's rows as scipy CSR, returning an object with ``analysis_ms``;
 - ``numeric(analysis, mat, A, density, previous)``: the per-values step, returning the setup object
-  (``check(probes)``, ``describe()``, ``nbytes``); ``previous`` is the last setup of the same
+  (``check(probes)``, ``describe()``, ``inner_pcs()``, ``nbytes``); ``previous`` is the last setup of the same
   analysis, whose buffers it may reuse;
 - ``apply(setup, x, y)``: y = M x on PETSc Vecs;
 - ``presolve(setup, ksp, b, x, stale)``: called before each KSPSolve (``stale``: the setup is reused on
@@ -15,104 +15,86 @@ options prefix, with
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
   the couplings, once the couplings moved);
 - ``destroy(analysis)``: free what the analysis and its setups hold;
-- ``model``: a line naming the model, or None.
+- ``title``: what runs, in a few words; ``model``: a line naming the model, or None.
 
-A new variant is one class here and its name in :data:`VARIANTS`.
+A new variant is one class and its entry in :data:`VARIANTS`, the one registry (``-htp_variant`` takes its
+names). The paper's variant and the learned coarse space run torch, an optional dependency (the ``learned``
+extra): asking for them without it is an error that says what to install.
 """
 from __future__ import annotations
 
-from .twolevel import coarsenet, composed as twolevelpc, sizing
-from .twolevel.direct import DirectPC
-from .twolevel.graphshape import graph_shape
-from .checkpoint import DEFAULT
-from .paper.inference import HTP
+from importlib import import_module
+
+from .twolevel.config import Config
+
+VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
+TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 
 
-class Paper:
-    """The paper's HTP: the network emits the H-matrix factors of M (float32 apply); one rank."""
+def require_torch(what: str):
+    """Import torch, or raise ModuleNotFoundError saying that ``what`` needs the ``learned`` extra."""
+    try:
+        import torch
+    except ModuleNotFoundError as err:
+        raise ModuleNotFoundError(f"{what} runs torch, which is not installed: {TORCH_EXTRA}") from err
+    return torch
 
-    def __init__(self, opts, prefix=""):
-        self.opts = opts
-        self.htp = HTP.cached(opts.checkpoint or None, opts.device)
-        cfg = self.htp.net.cfg
-        self.model = (f"d={cfg.d}, n_l={cfg.n_layers}, L={cfg.leaf}, L_s={cfg.coarse}, heads={cfg.heads}, "
-                      f"highways={'yes' if cfg.highways else 'no'}; {self.htp.net.n_params()} parameters; "
-                      f"device {self.htp.device}; checkpoint {opts.checkpoint or 'shipped ' + str(DEFAULT)}")
 
-    def analyse(self, mat, A, coords):
-        """Ordering, partition and structural features."""
-        if mat.getComm().getSize() > 1:
-            raise ValueError(
-                f"-htp_variant paper needs a sequential matrix but got a parallel '{mat.getType()}' matrix on "
-                f"{mat.getComm().getSize()} ranks; use -htp_variant twolevel (a global coarse space), or "
-                "precondition each rank's block with -pc_type bjacobi -sub_pc_type python "
-                "-sub_pc_python_type petsc_htp.HTPPC")
-        if coords is not None and coords.shape[1] != 2:
-            raise ValueError(
-                f"-htp_variant paper is 2-D only: its network was trained on 2-D scenes and reads 2-D cell "
-                f"coordinates (its features and quadtree partition), but {coords.shape[1]}-D coordinates are "
-                "attached; use -htp_variant twolevel (the default), which takes 3-D problems")
-        return self.htp.analyse(A, coords, self.opts.ordering)
-
-    def numeric(self, analysis, mat, A, density, previous):
-        """Network, factors and SPD guard."""
-        return self.htp.numeric(analysis, A, density, self.opts.shift, self.opts.spd_guard, into=previous)
-
-    @staticmethod
-    def apply(setup, x, y):
-        """y = M x through the float32 torch apply."""
-        y.array_w[...] = setup.apply(x.array_r)
-
-    @staticmethod
-    def presolve(setup, ksp, b, x, stale):
-        """Nothing to do before a solve."""
-        return None
-
-    @staticmethod
-    def moved(analysis, A) -> bool:
-        """The analysis depends on the pattern only."""
-        return False
-
-    @staticmethod
-    def destroy(analysis):
-        """Nothing to free: torch tensors go with their Python objects."""
+def variant_class(name: str):
+    """The class registered as ``name`` (torch checked first where it needs it)."""
+    module, cls = VARIANTS[name]
+    if name == "paper":
+        require_torch("-htp_variant paper (the paper's network)")
+    return getattr(import_module(module), cls)
 
 
 class TwoLevel:
     """Exact leaf solves, a coarse space per leaf and its exact Galerkin operator (float64), from PETSc parts
-    (:mod:`petsc_htp.twolevel.composed`), on any number of ranks. The analysis object is the setup: its numeric
-    step refreshes it in place."""
+    (:mod:`petsc_htp.twolevel.composed`), on any number of ranks; a small matrix on one rank gets one sparse
+    factor (:mod:`petsc_htp.twolevel.direct`). The analysis object is the setup: its numeric step refreshes it
+    in place."""
 
     model = None
+    title = "two-level preconditioner: leaf solves, a coarse space per leaf, Galerkin coarse operator (no network)"
 
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
         self.net = None
         if opts.coarse == "learned":
+            require_torch("-htp_coarse learned (the coarse network)")
+            from .twolevel import coarsenet
+
             self.net, prov = coarsenet.cached(opts.coarse_checkpoint or None)
             self.model = (f"coarse network {self.net.n_parameters()} parameters, r={self.net.cfg.rank}; "
                           f"checkpoint {opts.coarse_checkpoint or 'shipped ' + str(coarsenet.DEFAULT)}")
 
-    def config(self) -> twolevelpc.Config:
+    def config(self) -> Config:
         """The two-level configuration from the options."""
         o = self.opts
-        return twolevelpc.Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap,
-                                 o.coarse_solver)
+        return Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap, o.coarse_solver)
 
     def analyse(self, mat, A, coords):
-        """Leaves, index maps, components and every matrix with its pattern (see :class:`twolevelpc.TwoLevelPC`)."""
+        """Leaves, index maps, components and every matrix with its pattern (see
+        :class:`~petsc_htp.twolevel.composed.TwoLevelPC`), or the small matrix's factor."""
         if self.net is not None and coords is not None and coords.shape[1] != 2:
             raise ValueError(
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
         if self.direct(mat, A, coords):
+            from .twolevel.direct import DirectPC
+
             return DirectPC(mat, A, self.config(), self.prefix + "htp_")
-        return twolevelpc.TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+        from .twolevel.composed import TwoLevelPC
+
+        return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
     def direct(self, mat, A, coords) -> bool:
         """Whether one sparse factor serves ``mat`` (this rank's rows ``A``): one rank, no two-level option set, and
         at most ``-htp_direct_max`` rows, or with -1 :data:`sizing.DIRECT_MAX` rows of its dimension."""
+        from .twolevel import sizing
+        from .twolevel.graphshape import graph_shape
+
         o = self.opts
         plain = (o.leaf, o.ordering, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank, o.form,
                  o.coarse_space_every) == (0, "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
@@ -128,8 +110,9 @@ class TwoLevel:
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
-        keep = previous is not None and previous.age + 1 < self.opts.coarse_space_every
-        analysis.cfg = analysis.resolved(self.config())
+        every = self.opts.coarse_space_every          # > 1 only on a TwoLevelPC (DirectPC takes plain options)
+        keep = previous is not None and every > 1 and previous.space.age + 1 < every
+        analysis.configure(self.config())
         analysis.numeric(A, density, keep_space=keep)
         return analysis
 
@@ -149,9 +132,11 @@ class TwoLevel:
         return setup.presolve(ksp, b, x, stale)
 
     @staticmethod
+    def inner_pcs(setup) -> dict:
+        """The setup's inner PETSc solvers by role."""
+        return setup.inner_pcs()
+
+    @staticmethod
     def destroy(analysis):
         """Free the PETSc objects."""
         analysis.destroy()
-
-
-VARIANTS = {"paper": Paper, "twolevel": TwoLevel}

@@ -15,7 +15,7 @@ import scipy.sparse as sp  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from petsc_htp.methods import reason_name  # noqa: E402
+from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.petscmat import region_nullspace  # noqa: E402
 from petsc_htp.scenes.generator import make_frame  # noqa: E402
 

@@ -20,7 +20,7 @@ def grid_laplacian(nx, ny, dirichlet=0.0):
 @pytest.fixture(scope="session")
 def tiny_ckpt(tmp_path_factory):
     """A small untrained network checkpoint (its M starts out close to Jacobi)."""
-    from petsc_htp import checkpoint
+    from petsc_htp.training import checkpoint
     from petsc_htp.paper.model import HTPConfig, HTPNet
     torch.manual_seed(0)
     path = tmp_path_factory.mktemp("ckpt") / "tiny.pt"

@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("petsc4py")
 pytest.importorskip("pyamg")
 
-from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.training import checkpoint  # noqa: E402
 from petsc_htp.bench import aggregate, main, store  # noqa: E402
 from petsc_htp.bench.methods import DEFAULT_METHODS, resolve_method  # noqa: E402
 from petsc_htp.bench.readme import END, START  # noqa: E402
@@ -288,7 +288,7 @@ def test_options_loader_follows_includes_and_sets_bjacobi_blocks(tmp_path, monke
     from petsc4py import PETSc
 
     from petsc_htp.bench.runner import load
-    from petsc_htp.methods import Loaded, bjacobi_blocks
+    from petsc_htp.bench.harness import Loaded, bjacobi_blocks
 
     monkeypatch.chdir(tmp_path)                      # includes resolve from any working directory
     with Loaded("cg_jacobi", prefix="t_jac_"):

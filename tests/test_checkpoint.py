@@ -3,9 +3,9 @@ import dataclasses
 import pytest
 import torch
 
-from petsc_htp import checkpoint
+from petsc_htp.training import checkpoint
 from petsc_htp.paper import weights
-from petsc_htp.checkpoint import CheckpointError
+from petsc_htp.training.checkpoint import CheckpointError
 from petsc_htp.paper.model import HTPConfig, HTPNet
 
 

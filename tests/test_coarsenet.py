@@ -7,11 +7,11 @@ import scipy.sparse as sp
 import torch
 
 from petsc_htp.twolevel import coarsenet
-from petsc_htp.checkpoint import CheckpointError
+from petsc_htp.training.checkpoint import CheckpointError
 from petsc_htp.twolevel.coarsenet import CoarseConfig, CoarseNet, learned_basis
 from petsc_htp.twolevel.coarsetrain import TrainSettings, context_loss, make_context, train
 from petsc_htp.twolevel.leaves import choose_leaves
-from petsc_htp.pcg import pcg
+from petsc_htp.training.pcg import pcg
 from petsc_htp.scenes.generator import make_frame
 from petsc_htp.twolevel.batched import analyse, factor
 

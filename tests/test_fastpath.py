@@ -20,7 +20,7 @@ from petsc_htp.fastpath import (
 )
 from petsc_htp.paper.inference import HTP
 from petsc_htp.paper.model import HTPConfig, HTPNet
-from petsc_htp.pcg import jacobi, pcg
+from petsc_htp.training.pcg import jacobi, pcg
 from petsc_htp.scenes.generator import make_frame
 
 requires_cuda = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")

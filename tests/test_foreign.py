@@ -117,9 +117,9 @@ def test_decoupled_rows_get_no_coarse_vector():
     setup = ksp.getPC().getPythonContext().setup
     lone = int(decoupled_rows(A).sum())
     assert reason > 0 and its <= 40 and relres <= 1e-8
-    assert setup.m == int(setup.ncols.sum()) and setup.m < A.shape[0] - lone
+    assert setup.st.m == int(setup.st.ncols.sum()) and setup.st.m < A.shape[0] - lone
     assert f"{lone} of them decoupled rows (no coarse vector)" in lines(ksp)
-    assert np.count_nonzero(setup.ncols) == setup.ncols.size - int(np.ceil(lone / DECOUPLED_LEAF))
+    assert np.count_nonzero(setup.st.ncols) == setup.st.ncols.size - int(np.ceil(lone / DECOUPLED_LEAF))
 
 
 @pytest.mark.parametrize("name", list(pyamg_cases()))
@@ -223,4 +223,4 @@ def test_amg_coarse_solve_of_aggregation_leaves_is_an_inner_krylov_solve():
     reason, its, relres, ksp, _ = solve(A, b, htp_coarse_solver="gamg")
     assert reason > 0 and relres <= 1e-8 and its <= lu_its + 2 <= 42, (its, lu_its)
     assert "coarse solve: GCR to rtol 0.001 preconditioned by GAMG" in lines(ksp)
-    assert ksp.getPC().getPythonContext().setup.coarse.getKSP().getPC().getType() == "gamg"
+    assert ksp.getPC().getPythonContext().setup.coarse.pc.getKSP().getPC().getType() == "gamg"

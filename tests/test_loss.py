@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from petsc_htp.loss import cosine_loss, n_probes, sai_loss, smoothed_probes
+from petsc_htp.training.loss import cosine_loss, n_probes, sai_loss, smoothed_probes
 from tests.conftest import grid_laplacian
 
 

@@ -33,7 +33,7 @@ def test_bjacobi_paper_on_two_ranks(tiny_ckpt):
     assert relres <= 1.01e-8
     # each rank's diagonal block (1024 rows, coordinates attached) is preconditioned by HTP
     assert "number of blocks = 2" in out
-    assert "HTP (Hierarchical Transformer Preconditioner), variant paper" in out
+    assert "HTPPC, variant paper: the paper's Hierarchical Transformer Preconditioner" in out
     assert "N=1024, L=128, K=8 leaves" in out
     assert "ordering: morton (given)" in out
 

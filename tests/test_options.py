@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip("petsc4py")
 
-from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.training import checkpoint  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "poisson_multiphase.py"

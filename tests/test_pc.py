@@ -14,10 +14,10 @@ petsc4py = pytest.importorskip("petsc4py")
 from petsc4py import PETSc  # noqa: E402
 
 import petsc_htp  # noqa: E402
-from petsc_htp import checkpoint  # noqa: E402
+from petsc_htp.training import checkpoint  # noqa: E402
 from petsc_htp.paper.model import HTPConfig, HTPNet  # noqa: E402
 from petsc_htp.scenes.dataset import TEST_SEED_OFFSET  # noqa: E402
-from petsc_htp.methods import reason_name  # noqa: E402
+from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.petscmat import frame_mat as _frame_mat  # noqa: E402
 from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
@@ -204,7 +204,7 @@ def test_view_lines(frame, tiny_ckpt, options):
     ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))
     solve(ksp, A, frame.b)
     text = view_text(ksp)
-    for needle in ("Python: petsc_htp.HTPPC", "HTP (Hierarchical Transformer Preconditioner), variant paper",
+    for needle in ("Python: petsc_htp.HTPPC", "HTPPC, variant paper: the paper's Hierarchical Transformer Preconditioner",
                    "model: d=32, n_l=1, L=128, L_s=32, heads=4, highways=yes;", "device cpu",
                    f"checkpoint {tiny_ckpt}", "N=1024, L=128, K=8 leaves, M_H=7 tiles",
                    "factor memory", "ordering: morton (given)", "setup: analysis", "numeric",
@@ -223,7 +223,7 @@ def test_ksp_view_and_log_view_from_the_example(tiny_ckpt):
     assert out.returncode == 0, out.stdout + out.stderr
     text = out.stdout
     assert "converged reason: CONVERGED_RTOL" in text
-    assert "type: python" in text and "HTP (Hierarchical Transformer Preconditioner), variant paper" in text
+    assert "type: python" in text and "HTPPC, variant paper: the paper's Hierarchical Transformer Preconditioner" in text
     assert "model: d=32, n_l=1" in text and "M_H=7 tiles" in text
     events = {line.split()[0]: line.split() for line in text.splitlines() if line.split()[:1] in (["HTPSetup"], ["HTPApply"])}
     assert set(events) == {"HTPSetup", "HTPApply"}, text[-3000:]

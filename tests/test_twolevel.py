@@ -9,7 +9,7 @@ from scipy.sparse.csgraph import connected_components
 from petsc_htp.sim.flow import Flow
 from petsc_htp.twolevel.leaves import Leaves, choose_leaves, contiguous_leaves, metis_leaves, morton_leaves
 from petsc_htp.morton import quantized_morton_codes
-from petsc_htp.pcg import jacobi, pcg
+from petsc_htp.training.pcg import jacobi, pcg
 from petsc_htp.scenes.generator import make_frame
 from petsc_htp.twolevel.batched import analyse, factor
 

@@ -15,7 +15,7 @@ from petsc_htp.scenes.dataset import load_dataset  # noqa: E402
 from petsc_htp.twolevel import sizing  # noqa: E402
 from petsc_htp.twolevel.graphshape import GraphShape  # noqa: E402
 from petsc_htp.twolevel.leaves import choose_leaves  # noqa: E402
-from petsc_htp.methods import reason_name  # noqa: E402
+from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.twolevel.batched import analyse, factor  # noqa: E402
 
 _PREFIXES = itertools.count()
@@ -80,7 +80,7 @@ def test_bare_permuted_matrix(frames, coarse):
         assert reason > 0 and relres <= 1.01e-8, reason_name(reason)
         assert its <= bars[coarse], its
         ctx = ksp.getPC().getPythonContext()
-        assert ctx.setup.leaves.kind == "aggregation"
+        assert ctx.setup.st.leaves.kind == "aggregation"
 
 
 def test_attached_geometry_uses_morton_leaves_and_no_more_iterations(frames):
@@ -91,7 +91,7 @@ def test_attached_geometry_uses_morton_leaves_and_no_more_iterations(frames):
     reason, its, relres, ksp = solve(mat, frame.b)
     assert reason > 0 and relres <= 1.01e-8 and its <= 35
     assert its <= bare_its <= 35
-    assert ksp.getPC().getPythonContext().setup.leaves.kind.startswith("morton")
+    assert ksp.getPC().getPythonContext().setup.st.leaves.kind.startswith("morton")
 
 
 def laplacian_3d(m, shift=0.0):
@@ -148,7 +148,7 @@ def test_any_ksp_reaches_its_rtol_in_the_true_residual(frames, ksp_type):
     """HTPPC as it comes under other Krylov methods (auto form: balanced where M must be symmetric)."""
     frame = frames[0]
     reason, its, relres, ksp = solve(petsc_mat(frame.A), frame.b, ksp_type=ksp_type, htp_variant=None)
-    form = ksp.getPC().getPythonContext().setup.form(ksp_type)
+    form = ksp.getPC().getPythonContext().setup.forms.form(ksp_type)
     assert reason > 0 and relres <= 1.01e-8 and its <= 40, (reason_name(reason), its, relres)
     assert form == ("balanced" if ksp_type == "minres" else "deflated")
 
@@ -226,7 +226,7 @@ def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
             reason, its[tol], relres, ksp = solve(mat, b - b.mean(), htp_coarse_tol=tol, htp_leaf=128,
                                                   htp_coarse_rank=4)
             assert reason > 0 and relres <= 1.01e-8
-            counts[name, tol] = ksp.getPC().getPythonContext().setup.kept
+            counts[name, tol] = ksp.getPC().getPythonContext().setup.space.kept
         assert its[0.01] <= its[0.0]
     assert np.all(counts["smooth", 0.0] == 4) and np.all(counts["rough", 0.0] == 4)
     assert counts["smooth", 0.01].mean() <= 4.25 and counts["rough", 0.01].mean() >= 5
@@ -243,8 +243,8 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     _, _, _, ksp = solve(mat, b, htp_coarse_space_every=3)
     ctx, ages, spaces = ksp.getPC().getPythonContext(), [], []
     for _ in range(4):
-        ages.append(ctx.setup.age)
-        spaces.append(ctx.setup.w_values.copy())
+        ages.append(ctx.setup.space.age)
+        spaces.append(ctx.setup.space.values.copy())
         sim.project(ksp.getSolution().getArray())
         sim.advance()
         A, b, _, _ = sim.system()
@@ -258,7 +258,7 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     assert ages == [0, 1, 2, 0] and (ctx.analysis_count, ctx.numeric_count) == (1, 5)
     assert np.array_equal(spaces[1], spaces[0]) and np.array_equal(spaces[2], spaces[0])
     assert not np.array_equal(spaces[3], spaces[0])
-    assert ctx.setup.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
+    assert ctx.setup.space.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
 
 
 @pytest.mark.slow
@@ -290,7 +290,7 @@ def test_torch_and_petsc_back_ends_agree_on_every_stability_case(coarse, leaf, r
     """
     from scipy.sparse.csgraph import connected_components
 
-    from petsc_htp.pcg import pcg
+    from petsc_htp.training.pcg import pcg
     from petsc_htp.petscmat import frame_mat
 
     for prob in stability_problems(4096, 1, 8192, 1000, 16384):
@@ -320,17 +320,17 @@ def test_coarse_space_holds_piece_constants_and_orthonormal_modes(frames):
     mat = petsc_mat(frame.A)
     _, _, _, ksp = solve(mat, frame.b, htp_coarse_rank=4, htp_coarse_tol=0)
     setup = ksp.getPC().getPythonContext().setup
-    lay = setup.lay
-    W = sp.csr_matrix(setup.W.getValuesCSR()[::-1], shape=setup.W.getSize())
+    lay = setup.st.lay
+    W = sp.csr_matrix(setup.ops.W.getValuesCSR()[::-1], shape=setup.ops.W.getSize())
     for k in range(lay.leaves.n_leaves):
         rows = lay.perm[lay.leaves.offsets[k]:lay.leaves.offsets[k + 1]]
-        cols = setup.leaf_col[k] + np.arange(setup.ncols[k])
+        cols = setup.st.leaf_col[k] + np.arange(setup.st.ncols[k])
         Wk = W[rows][:, cols].toarray()
         const = 0.0 if k == 0 else 1 / np.sqrt(rows.size)                   # one piece: its constant, last
         assert np.allclose(Wk.T @ Wk, np.diag([1, 1, 1, const ** 2 * rows.size]), atol=1e-10)
         assert np.allclose(Wk[:, -1], const)
         assert W[rows][:, np.setdiff1d(np.arange(W.shape[1]), cols)].nnz == 0
-    assert setup.ncols.min() == 4 and setup.n_pieces == lay.leaves.n_leaves
+    assert setup.st.ncols.min() == 4 and setup.st.n_pieces == lay.leaves.n_leaves
 
 
 def test_inner_solver_defaults_are_scoped_and_overridable(frames):
@@ -362,7 +362,7 @@ def test_twolevel_checks_its_factorisations_without_probes_by_default(frames, tm
 def test_learned_in_htppc_matches_the_seeded_torch_path(frames):
     """HTPPC's learned space and twolevel's 'seeded' one refine the same network vectors the same way."""
     from petsc_htp.twolevel import coarsenet
-    from petsc_htp.pcg import pcg
+    from petsc_htp.training.pcg import pcg
 
     frame = frames[1]
     mat = petsc_mat(frame.A)
@@ -388,14 +388,14 @@ def test_3d_frame_with_coordinates_and_bare(cube):
     petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
     reason, its, relres, ksp = solve(mat, cube.b, htp_variant=None)
     setup = ksp.getPC().getPythonContext().setup
-    assert reason > 0 and relres <= 1.01e-8 and its <= 40 and setup.leaves.kind.startswith("morton")
-    assert (setup.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (3, 64, "const", "icc")
+    assert reason > 0 and relres <= 1.01e-8 and its <= 40 and setup.st.leaves.kind.startswith("morton")
+    assert (setup.st.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (3, 64, "const", "icc")
     assert "L=64 (leaf and coarse by the problem: 3-D)" in setup.describe()[0]
     p = np.random.default_rng(0).permutation(cube.n)
     reason, bare_its, relres, ksp = solve(petsc_mat(cube.A[p][:, p]), cube.b[p], htp_variant=None)
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1.01e-8 and bare_its <= 45
-    assert setup.leaves.kind == "aggregation" and (setup.dim, setup.cfg.coarse) == (3, "const")    # the graph is 3-D
+    assert setup.st.leaves.kind == "aggregation" and (setup.st.dim, setup.cfg.coarse) == (3, "const")    # the graph is 3-D
 
 
 def test_3d_defaults_give_way_to_the_users_options(cube):
@@ -415,7 +415,7 @@ def test_2d_defaults(frames):
     reason, its, relres, ksp = solve(mat, frames[0].b)
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1.01e-8
-    assert (setup.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (2, 32, "eig", "cholesky")
+    assert (setup.st.dim, setup.cfg.leaf, setup.cfg.coarse, setup.leafsolver.pc.getType()) == (2, 32, "eig", "cholesky")
     assert "L=32 (leaf and coarse by the problem: 2-D)" in setup.describe()[0]
 
 
@@ -453,11 +453,11 @@ def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):
     petsc_htp.attach(mat, coords=cube.coords, density=cube.rho)
     _, lu_its, _, ksp = solve(mat, cube.b)
     setup = ksp.getPC().getPythonContext().setup
-    assert setup.coarse.getType() == "lu" and "by the problem: 64 rows; direct up to" in setup._solver_text()
+    assert setup.coarse.pc.getType() == "lu" and "by the problem: 64 rows; direct up to" in setup.coarse.describe()
     reason, its, relres, ksp = solve(mat, cube.b, htp_coarse_solver="gamg")
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1.01e-8 and lu_its <= its <= lu_its + 6, (lu_its, its)
-    assert setup.coarse.getType() == "gamg" and setup.nbytes > 0
+    assert setup.coarse.pc.getType() == "gamg" and setup.nbytes > 0
     viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
     ksp.view(viewer)
     viewer.destroy()

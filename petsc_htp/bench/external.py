@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from ..pcg import pcg
+from ..training.pcg import pcg
 
 DESCRIPTION = {"pyamg": "pyamg classical (Ruge-Stueben) AMG, one V-cycle preconditioning a NumPy CG",
                "pyamg_sa": "pyamg smoothed-aggregation AMG, one V-cycle preconditioning a NumPy CG",

@@ -59,7 +59,7 @@ def main(argv=None) -> int:
     petsc4py.init([])
     from .cases import Problem
     from .methods import resolve_method
-    from .runner import _solve, htp_options, load
+    from .runner import solve_method, htp_options, load
     from .studies.foreign import bare_frame
 
     import_ms = 1e3 * (time.perf_counter() - t0)
@@ -70,7 +70,7 @@ def main(argv=None) -> int:
     _reset_peak()
     baseline = _status_mb("VmRSS")
     try:
-        row = _solve(method, method.prefix, Problem(bare_frame(A, z["b"], args.case), case=args.case, attach=False),
+        row = solve_method(method, method.prefix, Problem(bare_frame(A, z["b"], args.case), case=args.case, attach=False),
                      False)
     finally:
         if loaded is not None:

@@ -61,7 +61,7 @@ def versions() -> dict:
 
 def checkpoint_meta(path) -> dict:
     """Path and short sha256 of checkpoint ``path`` (default the shipped model)."""
-    from .. import checkpoint
+    from ..training import checkpoint
 
     path = Path(path).resolve() if path else checkpoint.DEFAULT
     if not path.is_file():
@@ -75,7 +75,7 @@ def collect(ctx, argv, quick, selected) -> dict:
     from petsc4py import PETSc
 
     from ..paper.inference import resolve_device
-    from ..methods import common_setting
+    from .harness import common_setting
 
     meta = {
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),

@@ -1,10 +1,10 @@
-"""Which methods a benchmark runs: PETSc options files (see :mod:`petsc_htp.methods`), plus pyamg and AMGCL."""
+"""Which methods a benchmark runs: PETSc options files (see :mod:`petsc_htp.bench.harness`), plus pyamg and AMGCL."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import methods
+from . import harness
 from .external import is_external
 
 PYAMG = "pyamg"
@@ -37,7 +37,7 @@ def resolve_method(name) -> Method:
     or a path to an ``.opts`` file."""
     if is_external(name):
         return Method(name)
-    path = methods.find(name)
+    path = harness.find(name)
     return Method(path.stem, path)
 
 

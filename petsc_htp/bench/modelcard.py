@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import checkpoint
+from ..training import checkpoint
 from ..paper import weights
 from .aggregate import cells
 from .markdown import md_table, n_label

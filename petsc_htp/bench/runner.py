@@ -1,7 +1,7 @@
 """One frame, one method: a PETSc options file under its prefix, or an external solver (pyamg, AMGCL).
 
-PETSc methods are loaded by :class:`petsc_htp.methods.Loaded` (the project's
-one loader) and solved by :func:`petsc_htp.methods.solve`, which times
+PETSc methods are loaded by :class:`petsc_htp.bench.harness.Loaded` (the project's
+one loader) and solved by :func:`petsc_htp.bench.harness.solve`, which times
 ``KSPSetUp`` (plus ``PCSetUpOnBlocks``) and ``KSPSolve`` separately. Every
 solve returns one row (a dict); a method that raises, diverges or produces
 NaN gives a failure row instead of stopping the run.
@@ -15,7 +15,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..methods import Loaded, common_setting, solve
+from .harness import Loaded, common_setting, solve
 from ..petscmat import attach, frame_mat, frame_vec, gathered
 from . import external
 
@@ -93,7 +93,7 @@ def exception_row(method, problem, exc) -> dict:
             "relres": None, "relres_proj": None}
 
 
-def _finish(row, A, b, x, rtol):
+def finish_row(row, A, b, x, rtol):
     """Add residuals, totals and the failure verdict to ``row``."""
     relres, relres_proj = residuals(A, b, x)
     failure = failure_of(row["reason"], relres, relres_proj, rtol)
@@ -143,7 +143,7 @@ def solve_petsc(method, prefix, problem, monitor=False) -> dict:
                "bytes_per_unknown": None if res["htp_bytes"] is None else res["htp_bytes"] / problem.n}
         if monitor:
             row["curve"] = rec.points
-        return _finish(row, frame.A, frame.b, gathered(res["x"]), res["rtol"])
+        return finish_row(row, frame.A, frame.b, gathered(res["x"]), res["rtol"])
     finally:
         for obj in (A, b) + ((res["x"],) if res else ()):
             obj.destroy()
@@ -173,12 +173,12 @@ def _external_row(method, problem, monitor) -> dict:
            "inference_ms": None}
     if monitor:
         row["curve"] = res["curve"]
-    return _finish(row, frame.A, frame.b, res["x"], rtol)
+    return finish_row(row, frame.A, frame.b, res["x"], rtol)
 
 
 # ----------------------------------------------------------------------- driver
 
-def _solve(method, prefix, problem, monitor):
+def solve_method(method, prefix, problem, monitor):
     """One solve; any exception becomes a failure row. The row carries the run's peak memory so far."""
     try:
         row = (solve_petsc(method, prefix, problem, monitor) if method.is_petsc
@@ -227,9 +227,9 @@ def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=la
                     rows.append(exception_row(method, problem, failed[method.name]))
                 elif warmup and (method.name, problem.n) not in warmed:
                     warmed.add((method.name, problem.n))
-                    _solve(method, method.prefix, problem, False)
+                    solve_method(method, method.prefix, problem, False)
                 if method.name not in failed:
-                    rows.append(_solve(method, method.prefix, problem, monitor))
+                    rows.append(solve_method(method, method.prefix, problem, monitor))
                 tick()
     finally:
         for entry in reversed(loaded):

@@ -45,7 +45,7 @@ def petsc_operator(method, frame) -> np.ndarray:
     """The dense M of a method's PC (an options-file name) on ``frame``, geometry attached, through PETSc."""
     from petsc4py import PETSc
 
-    from ..methods import Loaded
+    from .harness import Loaded
     from ..petscmat import attach, frame_mat
 
     A = frame_mat(frame)

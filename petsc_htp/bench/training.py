@@ -5,7 +5,7 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import checkpoint
+from ..training import checkpoint
 from ..paper import weights
 from ..paper.model import HTPConfig
 from . import store

@@ -6,7 +6,7 @@ import scipy.sparse as sp
 import torch
 
 from ..paper.features import input_values
-from .timing import _capture, _timed
+from .timing import capture, timed
 
 
 class InferenceGraph:
@@ -28,7 +28,7 @@ class InferenceGraph:
             self.out = htp.net(self.inp, self.part)
             if self.device.type == "cuda":
                 try:
-                    self.graph, self.out = _capture(lambda: htp.net(self.inp, self.part))
+                    self.graph, self.out = capture(lambda: htp.net(self.inp, self.part))
                 except Exception as exc:  # any op the capture rejects: stay eager
                     self.error = f"{type(exc).__name__}: {exc}"
 
@@ -60,9 +60,9 @@ class InferenceGraph:
             else:
                 old.copy_(value)
         if self.graph is not None:
-            _, self.inference_ms = _timed(self.graph.replay, self.device)
+            _, self.inference_ms = timed(self.graph.replay, self.device)
         else:
-            self.out, self.inference_ms = _timed(lambda: self.htp.net(self.inp, self.part), self.device)
+            self.out, self.inference_ms = timed(lambda: self.htp.net(self.inp, self.part), self.device)
         return self.out
 
 

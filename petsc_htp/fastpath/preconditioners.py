@@ -9,7 +9,7 @@ import torch
 
 from ..pcoptions import HTPOptions
 from ..twolevel.sizing import LEAF
-from .timing import _capture, _device, _sync, _timed
+from .timing import capture, device_of, sync, timed
 
 METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig", "twolevel_learned")
 # (leaf size, coarse vectors per leaf) of the two-level coarse spaces: options/cg_twolevel_const.opts, HTPPC's
@@ -17,7 +17,7 @@ METHODS = ("none", "jacobi", "bjacobi", "htp", "twolevel_const", "twolevel_eig",
 SETTINGS = {"const": (16, 1), "eig": (LEAF[2], HTPOptions.coarse_rank), "learned": (128, None)}
 
 
-def _constant_null(A) -> bool:
+def constant_null(A) -> bool:
     """True when A's row sums vanish (the two-level method's rule): constants span a null space."""
     from ..twolevel.nullspace import null_regions
 
@@ -37,7 +37,7 @@ class Preconditioner:
     def __init__(self, A, coords=None, density=None, device="auto"):
         self.A, self.coords, self.density = sp.csr_matrix(A), coords, density
         self.n = self.A.shape[0]
-        self.device = _device(device)
+        self.device = device_of(device)
         self.perm = None
         self.setup_ms = None
 
@@ -49,7 +49,7 @@ class Preconditioner:
             self.A, self.coords, self.density = sp.csr_matrix(A), coords, density
         t0 = time.perf_counter()
         self._setup()
-        _sync(self.device)
+        sync(self.device)
         self.setup_ms = 1e3 * (time.perf_counter() - t0)
         return self.setup_ms
 
@@ -99,7 +99,7 @@ class BlockJacobi(Preconditioner):
         pad = np.arange(n, nb * b)
         dense[pad // b, pad % b, pad % b] = 1.0
         blocks = torch.from_numpy(dense).to(self.device)
-        if n <= b and _constant_null(self.A):  # one singular block: invert A + max(diag) 11^T / n
+        if n <= b and constant_null(self.A):  # one singular block: invert A + max(diag) 11^T / n
             blocks[0, :n, :n] += self.A.diagonal().max() / n
         inv = torch.cholesky_inverse(torch.linalg.cholesky(blocks)).float()
         if self.inv is None:
@@ -130,7 +130,7 @@ class HTPPreconditioner(Preconditioner):
 
     def __init__(self, A, htp, coords=None, density=None, device="auto"):
         super().__init__(A, coords, density, device)
-        if _device(htp.device) != self.device:
+        if device_of(htp.device) != self.device:
             raise ValueError(f"the HTP network lives on {htp.device}, not on {self.device}")
         self.htp = htp
         self.last = None
@@ -221,9 +221,9 @@ def apply_microbench(precond: Preconditioner, n_apply: int = 50) -> float:
             precond.apply_(r, z)
 
     if dev.type == "cuda":
-        graph, _ = _capture(run, warmup=1)
-        _, ms = _timed(graph.replay, dev)
+        graph, _ = capture(run, warmup=1)
+        _, ms = timed(graph.replay, dev)
     else:
         precond.apply_(r, z)
-        _, ms = _timed(run, dev)
+        _, ms = timed(run, dev)
     return 1e3 * ms / n_apply

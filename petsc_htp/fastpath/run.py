@@ -12,7 +12,7 @@ from ..paper.inference import HTP
 from .inference_graph import capture_inference
 from .preconditioners import METHODS, make_preconditioner
 from .solver import GraphPCG
-from .timing import _device
+from .timing import device_of
 
 
 def run_fastpath(frames, methods=METHODS, htp=None, device="auto", check_every=8, rtol=1e-8,
@@ -22,7 +22,7 @@ def run_fastpath(frames, methods=METHODS, htp=None, device="auto", check_every=8
     Solvers (and their graphs) are built once per (N, method) and refreshed for
     later frames. A method that raises gives a row whose reason is "error: ...".
     """
-    dev = _device(device)
+    dev = device_of(device)
     name = torch.cuda.get_device_name(dev) if dev.type == "cuda" else "cpu"
     cache, graphs, rows = {}, {}, []
     for frame in frames:
@@ -79,7 +79,7 @@ def main(argv=None) -> int:
     ap.add_argument("--checkpoint", default=None, help="HTP checkpoint (default: the shipped one)")
     ap.add_argument("--out", default="results.jsonl", help="JSONL output file")
     args = ap.parse_args(argv)
-    dev = _device(args.device)
+    dev = device_of(args.device)
     methods, htp = list(args.methods), None
     if "htp" in methods:
         try:

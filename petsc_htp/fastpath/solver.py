@@ -9,8 +9,8 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from .preconditioners import _constant_null, apply_microbench
-from .timing import _capture, _device, _timed
+from .preconditioners import constant_null, apply_microbench
+from .timing import capture, device_of, timed
 
 REASONS = {1: "nan", 2: "indefinite_pc", 3: "indefinite_mat"}
 
@@ -59,7 +59,7 @@ class GraphPCG:
 
     def __init__(self, A, precond, device=None, check_every=8, rtol=1e-8, maxiter=10000, use_graph=None):
         self.pc = precond
-        self.device = dev = precond.device if device is None else _device(device)
+        self.device = dev = precond.device if device is None else device_of(device)
         if dev != precond.device:
             raise ValueError(f"solver device {dev} differs from the preconditioner's {precond.device}")
         if check_every < 1 or maxiter < 0 or not rtol > 0:
@@ -91,7 +91,7 @@ class GraphPCG:
         if self.perm is not None:
             A = A[self.perm][:, self.perm]
         A.sum_duplicates()
-        null = _constant_null(A)
+        null = constant_null(A)
         if null != self.null:
             self.graph = None
         self.null = null
@@ -184,7 +184,7 @@ class GraphPCG:
         if self.us_per_apply is None:
             self.us_per_apply = apply_microbench(self.pc)
         if self.use_graph and self.graph is None:
-            self.graph, _ = _capture(self._block, warmup=1)
+            self.graph, _ = capture(self._block, warmup=1)
         self.b.copy_(torch.from_numpy((b if perm is None else b[perm]).astype(np.float32)))
         checks = []
 
@@ -200,7 +200,7 @@ class GraphPCG:
                 if done or flag or it >= self.maxiter:
                     return
 
-        _, ms = _timed(run, self.device)
+        _, ms = timed(run, self.device)
         it, done, flag = (int(v) for v in checks[-1][:3])
         reason = REASONS[flag] if flag else ("converged" if done else "max_it")
         xp = self.x.double().cpu().numpy()

@@ -8,7 +8,7 @@ import torch
 from ..paper.inference import resolve_device
 
 
-def _device(device) -> torch.device:
+def device_of(device) -> torch.device:
     """Resolve 'auto'/'cpu'/'cuda[:i]' (or a torch.device) to a device with an explicit CUDA index."""
     dev = resolve_device(device) if isinstance(device, str) else torch.device(device)
     if dev.type == "cuda" and dev.index is None:
@@ -17,12 +17,12 @@ def _device(device) -> torch.device:
 
 
 
-def _sync(device: torch.device):
+def sync(device: torch.device):
     if device.type == "cuda":
         torch.cuda.synchronize(device)
 
 
-def _timed(fn, device: torch.device):
+def timed(fn, device: torch.device):
     """Run ``fn()``; return (its result, milliseconds) from CUDA events on GPU, perf_counter on CPU."""
     if device.type == "cuda":
         start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
@@ -36,7 +36,7 @@ def _timed(fn, device: torch.device):
     return out, 1e3 * (time.perf_counter() - t0)
 
 
-def _capture(fn, warmup: int = 2):
+def capture(fn, warmup: int = 2):
     """Warm ``fn`` up on a side stream, then capture it; return (CUDAGraph, fn's output)."""
     stream = torch.cuda.Stream()
     stream.wait_stream(torch.cuda.current_stream())

@@ -2,5 +2,5 @@
 
 :mod:`.partition` (leaves and tiles) → :mod:`.features` → :mod:`.model` (the network) → :mod:`.apply`
 (the H-matrix apply) → :mod:`.inference` (analysis and numeric steps, :class:`~.inference.HTP`);
-training: :mod:`.train`, :mod:`.fit` (with :mod:`petsc_htp.loss`), :mod:`.weights` (its checkpoints).
+training: :mod:`.train`, :mod:`.fit` (with :mod:`petsc_htp.training.loss`), :mod:`.weights` (its checkpoints).
 """

@@ -12,8 +12,8 @@ import torch
 
 from .apply import Factors, HTPOperator, htp_apply
 from .partition import build_partition
-from ..loss import cosine_loss, n_probes, smoothed_probes
-from ..pcg import pcg
+from ..training.loss import cosine_loss, n_probes, smoothed_probes
+from ..training.pcg import pcg
 from .train import make_context
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from .. import checkpoint
+from ..training import checkpoint
 from . import weights
 from ..checks import probe_reason
 from .apply import HTPOperator

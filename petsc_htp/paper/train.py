@@ -17,15 +17,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .. import checkpoint
+from ..training import checkpoint
 from . import weights
 from ..atomic import write_text
 from .apply import Factors, HTPOperator, TreeIndex, htp_apply
 from .features import build_input
-from ..loss import cosine_loss, n_probes, sai_loss, smoothed_probes
+from ..training.loss import cosine_loss, n_probes, sai_loss, smoothed_probes
 from .model import HTPConfig, HTPNet
 from ..ordering import rcm_permutation
-from ..pcg import pcg
+from ..training.pcg import pcg
 from ..scenes.dataset import load_dataset
 
 

@@ -1,7 +1,7 @@
-"""The paper network's checkpoints: load one, or warm-start a network from one (:mod:`petsc_htp.checkpoint`)."""
+"""The paper network's checkpoints: load one, or warm-start a network from one (:mod:`petsc_htp.training.checkpoint`)."""
 from __future__ import annotations
 
-from ..checkpoint import CheckpointError, read
+from ..training.checkpoint import CheckpointError, read
 from .model import HTPConfig, HTPNet
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..atomic import atomic_open
-from .generator import GENERATOR_VERSION, Frame, _check_dim, _check_distribution, _check_positive_int, make_frame
+from .generator import GENERATOR_VERSION, Frame, check_dim, check_distribution, check_positive_int, make_frame
 
 TEST_SEED_OFFSET = 1_000_000
 SPLIT_SEED_OFFSETS = {"train": 0, "test": TEST_SEED_OFFSET}
@@ -32,7 +32,7 @@ def dataset_seeds(split, count):
     numpy.ndarray of int64
     """
     _check_split(split)
-    count = _check_positive_int(count, "count")
+    count = check_positive_int(count, "count")
     if count > TEST_SEED_OFFSET:
         raise ValueError(f"count must be at most {TEST_SEED_OFFSET}, got {count}")
     return SPLIT_SEED_OFFSETS[split] + np.arange(count, dtype=np.int64)
@@ -115,13 +115,13 @@ def load_dataset(n, split="train", distribution="full", count=None, cache_dir=No
     -------
     list of Frame
     """
-    n = _check_positive_int(n, "n")
+    n = check_positive_int(n, "n")
     _check_split(split)
-    _check_distribution(distribution)
+    check_distribution(distribution)
     count = DEFAULT_COUNTS[split] if count is None else count
     seeds = dataset_seeds(split, count)
     fields = {"n": n, "split": split, "distribution": distribution, "count": int(count)}
-    key = json.dumps(fields if _check_dim(dim) == 2 else {**fields, "dim": 3}, sort_keys=True)
+    key = json.dumps(fields if check_dim(dim) == 2 else {**fields, "dim": 3}, sort_keys=True)
     directory = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     path = directory / f"multiphase{'' if dim == 2 else '3d'}_n{n}_{split}_{distribution}_c{count}.npz"
     frames = _read_cache(path, key)

@@ -48,7 +48,7 @@ DISTRIBUTIONS = {
 
 # ----------------------------------------------------------------- validation
 
-def _check_positive_int(value, name):
+def check_positive_int(value, name):
     """Return ``value`` as an int, or raise ValueError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value <= 0:
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
@@ -62,7 +62,7 @@ def _check_seed(seed):
     return int(seed)
 
 
-def _check_distribution(name):
+def check_distribution(name):
     """Return the :class:`Distribution` called ``name``, or raise ValueError."""
     if name not in DISTRIBUTIONS:
         known = ", ".join(DISTRIBUTIONS)
@@ -86,7 +86,7 @@ def contrast_range(distribution="full", contrast=None):
     tuple
         ``(lo, hi, open_low)``.
     """
-    dist = _check_distribution(distribution)
+    dist = check_distribution(distribution)
     if contrast is None:
         return (*dist.contrast, dist.open_low)
     bounds = np.asarray(contrast, dtype=np.float64)
@@ -100,7 +100,7 @@ def contrast_range(distribution="full", contrast=None):
 
 # ----------------------------------------------------------------------- grid
 
-def _check_dim(dim):
+def check_dim(dim):
     """Return ``dim`` (2 or 3), or raise ValueError."""
     if dim not in DIMS:
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
@@ -112,8 +112,8 @@ def grid_dims(n, dim=2):
 
     2-D: ``W = ceil(sqrt(n))``, ``H = ceil(n / W)``; 3-D: ``W = H = ceil(cbrt(n))``, ``D = ceil(n / W^2)``.
     """
-    n = _check_positive_int(n, "n")
-    if _check_dim(dim) == 2:
+    n = check_positive_int(n, "n")
+    if check_dim(dim) == 2:
         w = math.isqrt(n)
         if w * w < n:
             w += 1
@@ -225,7 +225,7 @@ def sample_params(rng, distribution="full", contrast=None, dim=2):
     topologies = DISTRIBUTIONS[distribution].topologies
     rho_heavy = _loguniform(rng, lo, hi, open_low)
     count = int(rng.integers(1, 4))
-    barriers = [_sample_barrier(rng, topologies, _check_dim(dim)) for _ in range(count)]
+    barriers = [_sample_barrier(rng, topologies, check_dim(dim)) for _ in range(count)]
     return {"rho_heavy": rho_heavy, "barriers": barriers}
 
 
@@ -436,9 +436,9 @@ def make_frame(n, seed=0, distribution="full", contrast=None, rhs="random",
     -------
     Frame
     """
-    n = _check_positive_int(n, "n")
+    n = check_positive_int(n, "n")
     seed = _check_seed(seed)
-    dim = _check_dim(dim)
+    dim = check_dim(dim)
     if rhs not in RHS_KINDS:
         raise ValueError(f"unknown rhs {rhs!r}; expected one of {', '.join(RHS_KINDS)}")
     if not 0.0 <= gap_width <= 1.0:

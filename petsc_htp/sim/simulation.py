@@ -1,7 +1,7 @@
 """A pressure solver that lives across the frames of a simulation: one Mat, one KSP, reuse the PETSc way.
 
 :func:`simulate` runs :class:`petsc_htp.sim.flow.Flow` with the method whose
-options sit under a prefix (see :mod:`petsc_htp.methods`): the matrix keeps
+options sit under a prefix (see :mod:`petsc_htp.bench.harness`): the matrix keeps
 its nonzero pattern and gets new values every frame, the previous pressure is
 the initial guess, and :class:`ReusePolicy` decides when the preconditioner is
 rebuilt (``PCSetReusePreconditioner`` otherwise).
@@ -18,7 +18,7 @@ from petsc4py import PETSc
 from ..atomic import atomic_open
 from .flow import Flow
 from .plot import frame_images, plot_runs, write_gif
-from ..methods import bjacobi_blocks, reason_name
+from ..bench.harness import bjacobi_blocks, reason_name
 from ..petscmat import attach, gathered, local_csr, preallocated_aij, region_nullspace
 
 

@@ -10,7 +10,7 @@ batched torch (PETSc-free, the GPU fast path).
 ``analyse``, ``factor`` and ``coarse_space`` (the torch back-end) and ``choose_leaves`` are importable from here.
 """
 
-_EXPORTS = {"analyse": "batched", "factor": "batched", "coarse_space": "batched", "TwoLevel": "batched",
+_EXPORTS = {"analyse": "batched", "factor": "batched", "coarse_space": "batched", "BatchedTwoLevel": "batched",
             "choose_leaves": "leaves"}
 
 

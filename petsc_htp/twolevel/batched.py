@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from ..checks import probe_reason
-from ..ordering import _check_square
+from ..ordering import check_square
 from . import coarsespace, nullspace
 from .leaflayout import LeafLayout, layout
 from .leaves import Leaves
@@ -125,7 +125,7 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
     device : str or torch.device
     """
     t0 = time.perf_counter()
-    A = _check_square(A)
+    A = check_square(A)
     if leaves.n != A.shape[0]:
         raise ValueError(f"leaves cover {leaves.n} rows but A has {A.shape[0]}")
     device = torch.device(device)
@@ -148,14 +148,14 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
         in_dst=as_t(lay.pos[d_rows] * L + lay.pos[lay.d_indices] % L), diag_dst=as_t(lay.pos * L + lay.pos % L),
         off_src=as_t(lay.o_src), off_row=as_t(at[lay.o_rows]), off_col=as_t(at[A.indices[lay.o_src]]),
         n_comp=n_comp, comp_of_row=comp_of_row, comp_of_piece=comp_of_piece,
-        constants=coarsespace.piece_constants(lay).to(device), analysis_ms=_ms(t0, device))
+        constants=torch.as_tensor(coarsespace.piece_constants(lay)).to(device), analysis_ms=_ms(t0, device))
 
 
 # ------------------------------------------------------------------ numeric pieces
 
-def _values(analysis, A):
+def checked_values(analysis, A):
     """A.data as a float64 tensor, after checking shape, pattern size and finiteness."""
-    A = _check_square(A)
+    A = check_square(A)
     if A.shape[0] != analysis.n or A.nnz != analysis.nnz:
         raise ValueError(f"A does not match the analysed pattern: shape {A.shape}, nnz {A.nnz}; "
                          f"analysed N={analysis.n}, nnz={analysis.nnz}")
@@ -277,20 +277,20 @@ def _rows(analysis, basis):
 def _coarse_basis(analysis, A, d_values, coarse, rank, basis) -> torch.Tensor:
     """The coarse vectors (K, Lmax, q + c): 'const' the piece constants; 'eig' r - 1 vectors from the Neumann
     step and the constants; 'seeded' the step from ``basis``; 'given' ``basis`` made orthonormal, with them."""
-    lay, constants = analysis.lay, analysis.constants.cpu()
+    lay, constants = analysis.lay, analysis.constants.cpu().numpy()
     if coarse == "const":
-        return coarsespace.basis(lay, constants)[0]
+        return torch.as_tensor(coarsespace.basis(lay, constants)[0])
     if coarse == "given":
-        return coarsespace.basis(lay, constants, _rows(analysis, basis), lambda X: X)[0]
+        return torch.as_tensor(coarsespace.basis(lay, constants, _rows(analysis, basis), lambda X: X)[0])
     seeds = (_rows(analysis, basis) if coarse == "seeded"
              else coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, rank - 1))
     if seeds.shape[1] == 0:
-        return coarsespace.basis(lay, constants)[0]
+        return torch.as_tensor(coarsespace.basis(lay, constants)[0])
     _, solve = _neumann_solver(analysis, A, d_values)
-    return coarsespace.basis(lay, constants, seeds, solve)[0]
+    return torch.as_tensor(coarsespace.basis(lay, constants, seeds, solve)[0])
 
 
-def _dropped_columns(analysis, P, drop) -> torch.Tensor:
+def dropped_columns(analysis, P, drop) -> torch.Tensor:
     """P with the dropped pieces' constant columns zeroed."""
     lay = analysis.lay
     pieces = np.flatnonzero(drop)
@@ -327,7 +327,7 @@ def lifted(Ac):
 
 # ------------------------------------------------------------------ the operator
 
-class TwoLevel:
+class BatchedTwoLevel:
     """The factored two-level preconditioner M (see the module docstring).
 
     Attributes
@@ -411,10 +411,10 @@ class TwoLevel:
         return z
 
     @torch.no_grad()
-    def load_(self, other: "TwoLevel") -> None:
+    def load_(self, other: "BatchedTwoLevel") -> None:
         """Copy the factors of ``other`` (same analysis and rank) into this operator's buffers in place."""
         if other.analysis is not self.analysis or other.rank != self.rank:
-            raise ValueError("load_ needs a TwoLevel of the same analysis and rank")
+            raise ValueError("load_ needs a BatchedTwoLevel of the same analysis and rank")
         for dst, src in ((self._B, other._B), (self._P, other._P), (self._Ainv_c, other._Ainv_c),
                          (self._A.values(), other._A.values())):
             dst.copy_(src)
@@ -442,7 +442,7 @@ class TwoLevel:
 def leaf_stage(analysis: TwoLevelAnalysis, A) -> tuple:
     """The per-values leaf work: (values, padded CSR of A, leaf blocks of A, grounded D's values, dropped pieces,
     leaf inverses, their note, null components)."""
-    data = _values(analysis, A)
+    data = checked_values(analysis, A)
     A_csr = _csr(analysis, data)
     null, drop, ground = _null_rule(analysis, A)
     d_values = _leaf_values(analysis, A, ground)
@@ -467,14 +467,14 @@ def coarse_space(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None
     Parameters as in :func:`factor`.
     """
     _check_kind(coarse, rank, basis)
-    A = _check_square(A)
-    _values(analysis, A)
+    A = check_square(A)
+    checked_values(analysis, A)
     null, drop, ground = _null_rule(analysis, A)
     P = _coarse_basis(analysis, A, _leaf_values(analysis, A, ground), coarse, rank, basis)
-    return _dropped_columns(analysis, P, drop).to(analysis.device)
+    return dropped_columns(analysis, P, drop).to(analysis.device)
 
 
-def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> TwoLevel:
+def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> BatchedTwoLevel:
     """Per-values setup: leaf inverses, coarse space, Galerkin coarse operator and its inverse.
 
     Parameters
@@ -496,11 +496,11 @@ def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> T
     device = analysis.device
     times = {}
     t0 = time.perf_counter()
-    A = _check_square(A)
+    A = check_square(A)
     data, A_csr, blocks, d_values, drop, leaf_inv, leaf_note, n_null = leaf_stage(analysis, A)
     times["leaf"] = _ms(t0, device)
     t0 = time.perf_counter()
-    P = _dropped_columns(analysis, _coarse_basis(analysis, A, d_values, coarse, rank, basis), drop).to(device)
+    P = dropped_columns(analysis, _coarse_basis(analysis, A, d_values, coarse, rank, basis), drop).to(device)
     if P.shape[0] * P.shape[2] > MAX_COARSE:
         raise ValueError(f"coarse size K r = {P.shape[0]} x {P.shape[2]} exceeds {MAX_COARSE} "
                          "(dense coarse operator); use larger leaves or a smaller rank")
@@ -509,4 +509,4 @@ def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> T
     coarse_inv, shift, _ = _spd_inverse(lifted(galerkin(analysis, blocks, data, P))[None])
     coarse_note = f"Cholesky failed: shifted by {shift:g} x row-sum bound" if shift else ""
     times["coarse_operator"] = _ms(t0, device)
-    return TwoLevel(analysis, A_csr, leaf_inv, P, coarse_inv[0], coarse, (coarse_note, leaf_note), n_null, times)
+    return BatchedTwoLevel(analysis, A_csr, leaf_inv, P, coarse_inv[0], coarse, (coarse_note, leaf_note), n_null, times)

@@ -14,12 +14,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 import torch
 from torch import nn
 
-from .. import checkpoint
-from ..checkpoint import CheckpointError
-from .batched import _values
+from ..training import checkpoint
+from ..training.checkpoint import CheckpointError
+from .batched import checked_values
 
 FORMAT = "petsc_htp-coarse-checkpoint"
 VERSION = 1
@@ -153,7 +154,7 @@ def coarse_input(cfg: CoarseConfig, analysis, A, coords=None, density=None) -> C
     """
     K, L = analysis.shape
     n_pad, dev = K * L, analysis.device
-    data = _values(analysis, A)
+    data = checked_values(analysis, A)
     vals, cols = data[analysis.csr_src], analysis.col
     rows = torch.repeat_interleave(torch.arange(n_pad, device=dev), analysis.crow.diff())
     mask = analysis.mask.reshape(-1)
@@ -276,6 +277,23 @@ def own_vectors(net: CoarseNet, basis: torch.Tensor) -> torch.Tensor:
 def learned_vectors(net: CoarseNet, analysis, A, coords=None, density=None) -> torch.Tensor:
     """:func:`learned_basis` without the leaf constant: the seeds of the two-level 'seeded' coarse space."""
     return own_vectors(net, learned_basis(net, analysis, A, coords, density))
+
+
+def learned_seeds(net: CoarseNet, analysis, rows, st, coords, density, smooth) -> np.ndarray:
+    """The network's vectors (constant column left out) in the leaves' row order as the seeds of the two-level
+    method on one rank (:class:`~petsc_htp.twolevel.structure.Structure` ``st``; ``rows``: the rank's rows, whose
+    couplings to other ranks are folded into the diagonal), plus the smooth extras (``smooth``) where it keeps
+    some."""
+    lay = st.lay
+    block = st.block
+    if st.coll.size > 1:
+        outside = np.asarray(rows.sum(axis=1)).ravel() - np.asarray(block.sum(axis=1)).ravel()
+        block = (block + sp.diags(outside)).tocsr()
+        block.sort_indices()
+    P = learned_vectors(net, analysis, block, coords, density).cpu()
+    K, L = lay.shape
+    out = P.reshape(K * L, -1)[torch.as_tensor(lay.pos)].numpy()
+    return np.asfortranarray(np.hstack([out, smooth[:, st.q:]]) if st.extra else out)
 
 
 def save(path, net: CoarseNet, provenance: dict, extra: dict | None = None) -> Path:

@@ -11,13 +11,12 @@ One step from smooth seeds gives approximate low eigenvectors, which take fewer 
 than converged ones.
 
 Rows are in the leaves' order (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`); the batched per-leaf work
-runs on the padded (K, Lmax, q) layout. ``solve`` applies S^-1 to an (n, q) array, so the factor can be
-PETSc's (:mod:`petsc_htp.twolevel.composed`) or any other.
+runs on the padded (K, Lmax, q) layout, in numpy (the torch back-end converts). ``solve`` applies S^-1 to an
+(n, q) array, so the factor can be PETSc's (:mod:`petsc_htp.twolevel.composed`) or any other.
 """
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 DEPENDENT = 1e-6       # a direction with a singular value below this times the leaf's largest is dropped
 NEUMANN_SHIFT = 1e-4   # S's shift, times the leaf's mean |diagonal| (its constants are exact coarse vectors)
@@ -49,17 +48,16 @@ def lift(diag):
     return (diag == 0) * scale
 
 
-def piece_constants(lay, index=None) -> torch.Tensor:
+def piece_constants(lay, index=None) -> np.ndarray:
     """(K, Lmax, c): every piece's normalised constant in column ``index`` (default: its index within the leaf;
     a negative index: the piece has no column), c the most columns a leaf uses."""
     K, L = lay.shape
     pc = lay.pieces
     index = pc.index if index is None else index[pc.label]
     used = index >= 0
-    P = torch.zeros(K * L, int(index.max(initial=-1)) + 1, dtype=torch.float64)
-    P[torch.as_tensor(lay.pos[used]), torch.as_tensor(index[used])] = \
-        torch.as_tensor(1.0 / np.sqrt(pc.size[pc.label[used]]))
-    return P.view(K, L, -1)
+    P = np.zeros((K * L, int(index.max(initial=-1)) + 1))
+    P[lay.pos[used], index[used]] = 1.0 / np.sqrt(pc.size[pc.label[used]])
+    return P.reshape(K, L, -1)
 
 
 def flat(y, leaf, pieces) -> tuple:
@@ -82,7 +80,7 @@ def flat(y, leaf, pieces) -> tuple:
     return y, ok
 
 
-def _orthonormal(X, scale) -> torch.Tensor:
+def _orthonormal(X, scale) -> np.ndarray:
     """Orthonormal columns spanning each leaf's X (K, Lmax, q), as many as its rank; the rest come out zero.
 
     Symmetric orthonormalisation through each leaf's Gram matrix, twice (the second pass removes the first's
@@ -92,22 +90,24 @@ def _orthonormal(X, scale) -> torch.Tensor:
     """
     if X.shape[2] == 0:
         return X
-    floor = (DEPENDENT * scale).square().clamp_min(torch.finfo(torch.float64).tiny)[:, None]
+    tiny = np.finfo(np.float64).tiny
+    floor = np.maximum(np.square(DEPENDENT * scale), tiny)[:, None]
     for _ in range(2):
-        w, V = torch.linalg.eigh(X.mT @ X)
+        w, V = np.linalg.eigh(X.mT @ X)
         keep = w > floor
-        X = X @ (V * torch.where(keep, w.clamp_min(torch.finfo(torch.float64).tiny).rsqrt(), 0.0)[:, None, :])
-        floor = torch.full_like(floor, 0.25)            # the second pass: kept directions have unit length
+        X = X @ (V * np.where(keep, 1.0 / np.sqrt(np.maximum(w, tiny)), 0.0)[:, None, :])
+        floor = np.full_like(floor, 0.25)              # the second pass: kept directions have unit length
     return X
 
 
-def _size(X) -> torch.Tensor:
+def _size(X) -> np.ndarray:
     """Each leaf's largest column norm of X (K, Lmax, q)."""
-    return X.square().sum(1).amax(1).sqrt() if X.shape[2] else torch.zeros(X.shape[0], dtype=X.dtype)
+    return np.sqrt(np.square(X).sum(1).max(1)) if X.shape[2] else np.zeros(X.shape[0])
 
 
-def _without(X, C) -> torch.Tensor:
-    """X (K, Lmax, q) minus its components along the orthonormal columns C (K, Lmax, c) of each leaf."""
+def without(X, C):
+    """X (K, Lmax, q) minus its components along the orthonormal columns C (K, Lmax, c) of each leaf (numpy
+    arrays or torch tensors)."""
     return X - C @ (C.mT @ X)
 
 
@@ -117,7 +117,7 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
     Parameters
     ----------
     lay : LeafLayout
-    constants : Tensor (K, Lmax, c)
+    constants : numpy.ndarray (K, Lmax, c)
         :func:`piece_constants` of the layout.
     start_vectors : numpy.ndarray (n, q + extra), optional
         Seeds in the leaves' row order (None: the piece constants alone, the 'const' space).
@@ -133,7 +133,7 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
 
     Returns
     -------
-    P : Tensor (K, Lmax, q + extra + c)
+    P : numpy.ndarray (K, Lmax, q + extra + c)
         Zero on the padding and in unused columns.
     kept : numpy.ndarray (K,)
         Nonzero columns per leaf.
@@ -142,20 +142,19 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
     if start_vectors is None:
         P = constants
     else:
-        pos = torch.as_tensor(lay.pos)
-        Y = torch.zeros(K * L, start_vectors.shape[1], dtype=torch.float64)
-        Y[pos] = torch.as_tensor(solve(start_vectors))
-        Y = Y.view(K, L, -1)
+        Y = np.zeros((K * L, start_vectors.shape[1]))
+        Y[lay.pos] = solve(start_vectors)
+        Y = Y.reshape(K, L, -1)
         q = Y.shape[2] - extra
-        blocks = [_orthonormal(_without(Y[:, :, :q], constants), _size(Y[:, :, :q]))]
+        blocks = [_orthonormal(without(Y[:, :, :q], constants), _size(Y[:, :, :q]))]
         if extra:
-            rest = _orthonormal(_without(_without(Y[:, :, q:], constants), blocks[0]), _size(Y[:, :, q:]))
-            SX = torch.zeros(K * L, extra, dtype=torch.float64)
-            SX[pos] = torch.as_tensor(S @ rest.reshape(K * L, -1)[pos].numpy())
-            theta, U = torch.linalg.eigh(rest.mT @ SX.view(K, L, -1))
+            rest = _orthonormal(without(without(Y[:, :, q:], constants), blocks[0]), _size(Y[:, :, q:]))
+            SX = np.zeros((K * L, extra))
+            SX[lay.pos] = S @ rest.reshape(K * L, -1)[lay.pos]
+            theta, U = np.linalg.eigh(rest.mT @ SX.reshape(K, L, -1))
             rest = rest @ U
-            scale = torch.as_tensor(np.bincount(lay.leaf, np.abs(diag), minlength=K) / lay.leaves.sizes)
+            scale = np.bincount(lay.leaf, np.abs(diag), minlength=K) / lay.leaves.sizes
             blocks.append(rest * (theta <= tol * scale[:, None])[:, None, :])
-        P = torch.cat(blocks + [constants], dim=2)
-    kept = (P.abs().sum(1) > 0).sum(1).numpy()
+        P = np.concatenate(blocks + [constants], axis=2)
+    kept = (np.abs(P).sum(1) > 0).sum(1)
     return P, kept

@@ -27,10 +27,10 @@ from . import coarsenet, nullspace
 from .coarsenet import CoarseConfig, CoarseInput, CoarseNet, coarse_input
 from ..scenes.dataset import load_dataset
 from .leaves import choose_leaves
-from ..loss import cosine_loss, n_probes, smoothed_probes
-from ..pcg import pcg
-from .batched import TwoLevelAnalysis, _dropped_columns, analyse, factor, galerkin, leaf_stage, lifted
-from .coarsespace import _without
+from ..training.loss import cosine_loss, n_probes, smoothed_probes
+from ..training.pcg import pcg
+from .batched import TwoLevelAnalysis, dropped_columns, analyse, factor, galerkin, leaf_stage, lifted
+from .coarsespace import without
 
 PROBE_STEPS = 30            # probe smoothing steps (see context_loss)
 
@@ -68,8 +68,8 @@ def coarse_vectors(ctx: Context, X: torch.Tensor) -> torch.Tensor:
     orthonormal (by QR, whose gradient is stable where the Gram eigendecomposition's is not), then the
     constants, the dropped pieces' zeroed."""
     constants = ctx.analysis.constants
-    P = torch.cat([torch.linalg.qr(_without(X.to(torch.float64), constants))[0], constants], dim=2)
-    return _dropped_columns(ctx.analysis, P, ctx.drop)
+    P = torch.cat([torch.linalg.qr(without(X.to(torch.float64), constants))[0], constants], dim=2)
+    return dropped_columns(ctx.analysis, P, ctx.drop)
 
 
 def null_projector(ctx: Context):

@@ -15,13 +15,13 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
-from .composed import configured_pc
+from .inner import configured_pc
 
 FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}
 
 
 class DirectPC:
-    """The whole matrix factored (same interface as :class:`~petsc_htp.twolevel.composed.TwoLevelPC`).
+    """The whole matrix factored (the interface of :class:`~petsc_htp.twolevel.composed.TwoLevelPC`).
 
     Parameters
     ----------
@@ -47,9 +47,12 @@ class DirectPC:
         """Nothing here depends on the values' shape: never a new analysis for new values."""
         return False
 
-    def resolved(self, cfg):
-        """``cfg`` as it is (nothing is sized by the problem here)."""
-        return cfg
+    def configure(self, cfg):
+        """Nothing here follows the options that need no new analysis."""
+
+    def inner_pcs(self) -> dict:
+        """The factor."""
+        return {"factor": self.pc}
 
     def numeric(self, rows, density=None, keep_space=False):
         """Factor the new values (grounded where a component is null)."""
@@ -74,7 +77,7 @@ class DirectPC:
             self.G.assemble()
             target = self.G
         if self.pc is None:
-            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, FACTOR)
+            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, FACTOR)[0]
             self.ordering = PETSc.Options(self.prefix).getString("pc_factor_mat_ordering_type",
                                                                  FACTOR["pc_factor_mat_ordering_type"])
         else:

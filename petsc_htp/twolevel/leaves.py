@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from .aggregation import aggregates
 from .embedding import grid_coordinates
 from ..morton import quantized_morton_codes
-from ..ordering import _check_coords, _check_square, choose_ordering
+from ..ordering import check_coords, check_square, choose_ordering
 
 LAYOUTS = ("auto", "aggregation", "morton", "graph", "metis", "natural", "rcm")
 CUT_FACTOR = 2.5    # graph leaves cutting more than this / sqrt(leaf) of A's couplings fall back to METIS
@@ -197,7 +197,7 @@ def metis_leaves(A, leaf=128, seed=0) -> Leaves:
     """
     import pymetis
 
-    A = _check_square(A)
+    A = check_square(A)
     leaf = _positive_int(leaf, "leaf")
     n = _positive_int(A.shape[0], "the size of A")
     t0 = time.perf_counter()
@@ -263,7 +263,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     """
     if layout not in LAYOUTS:
         raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
-    A = _check_square(A)
+    A = check_square(A)
     t0 = time.perf_counter()
     if layout == "aggregation" or (layout == "auto" and coords is None):
         return part_leaves(A, aggregates(A), "aggregation", t0, smooth=False)
@@ -279,7 +279,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128) -> Leaves:
     if layout in ("auto", "morton"):
         if coords is None:
             raise ValueError("leaf layout 'morton' needs coordinates (coords=None given)")
-        return _morton(A, _check_coords(coords, A.shape[0]), _positive_int(leaf, "leaf"), layout == "auto", "morton",
+        return _morton(A, check_coords(coords, A.shape[0]), _positive_int(leaf, "leaf"), layout == "auto", "morton",
                        t0)
     perm, name = choose_ordering(A, coords, layout)
     return contiguous_leaves(A.shape[0], leaf, perm, name, (time.perf_counter() - t0) * 1e3)

@@ -55,7 +55,7 @@ class _Persistent:
 
     def solve(self, A, b) -> dict:
         """Set the frame's values (a new Mat when the pattern changed) and solve from zero; the row's fields."""
-        from ...methods import reason_name
+        from ..harness import reason_name
         from ...petscmat import frame_mat, frame_vec
 
         frame = bare_frame(A, b, "")
@@ -96,7 +96,7 @@ class _Persistent:
 def sequence(methods, names, scales, frames, extra, tick) -> list:
     """Frames 1 .. ``frames`` of every case through persistent solvers (frame 0, left out, warms them up)."""
     from ..cases import Problem
-    from ..runner import _finish, _solve, base_row, exception_row, load, peak_rss_mb
+    from ..runner import finish_row, solve_method, base_row, exception_row, load, peak_rss_mb
 
     rows = []
     loaded = [load(m, extra) for m in methods if m.is_petsc]
@@ -112,10 +112,10 @@ def sequence(methods, names, scales, frames, extra, tick) -> list:
                             try:
                                 if m.is_petsc:
                                     res = solvers[m.name].solve(A, b)
-                                    row = _finish({**base_row(m, problem), **res}, A, b, res.pop("x"),
+                                    row = finish_row({**base_row(m, problem), **res}, A, b, res.pop("x"),
                                                   solvers[m.name].ksp.getTolerances()[0])
                                 else:
-                                    row = _solve(m, m.prefix, problem, False)
+                                    row = solve_method(m, m.prefix, problem, False)
                             except Exception as exc:  # a failing frame is a result
                                 row = exception_row(m, problem, exc)
                             row.pop("x", None)

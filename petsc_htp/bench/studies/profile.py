@@ -20,14 +20,14 @@ SPECTRUM_CHART = "spectrum.png"
 
 def shipped_log() -> Path:
     """The shipped model's training log."""
-    from ...checkpoint import DEFAULT
+    from ...training.checkpoint import DEFAULT
 
     return DEFAULT.parent / "train_log.jsonl"
 
 
 def _log_provenance(log_path, ckpt):
     """Provenance of the model a training log belongs to (checkpoint beside it, else ``ckpt``)."""
-    from ... import checkpoint
+    from ...training import checkpoint
 
     folder = Path(log_path).parent
     for cand in (folder / "final.pt", folder / "last.pt", ckpt):
@@ -43,7 +43,7 @@ def _baseline_rows(train, prov):
 
     Evaluation rows name their frame's N (``heldout_n``); older logs fall back to the provenance's.
     """
-    from ...pcg import jacobi, pcg
+    from ...training.pcg import jacobi, pcg
 
     sizes = sorted({r.get("heldout_n") or prov.get("heldout_n") for r in train if r.get("pcg_iters") is not None}
                    - {None})
@@ -58,7 +58,7 @@ def _baseline_rows(train, prov):
 
 def sources(out, cfg, budget, log_path=None, ckpt=None):
     """(training log, checkpoint) of the profile: given, else the shipped model's, else a model trained now."""
-    from ... import checkpoint
+    from ...training import checkpoint
     from ..training import trained_checkpoint
 
     log_path = Path(log_path) if log_path else (shipped_log() if shipped_log().is_file() else None)

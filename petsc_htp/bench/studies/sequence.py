@@ -18,6 +18,7 @@ from ..aggregate import cells, group
 from ..cases import held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, ratio
 from ..plotting import time_bars
+from ..applycosts import apply_costs
 from .base import DIM, Size, Study, tag
 
 CHART = "sequence.png"
@@ -30,7 +31,7 @@ def _ctx(solver):
     """The HTPPC context of a solver's PC when it is the two-level variant, else None."""
     pc = solver.ksp.getPC()
     ctx = pc.getPythonContext() if pc.getType() == "python" else None
-    return ctx if ctx is not None and hasattr(getattr(ctx, "setup", None), "apply_costs") else None
+    return ctx if ctx is not None and hasattr(getattr(ctx, "setup", None), "forms") else None
 
 
 def _petsc_row(solver, frame, rtol) -> dict:
@@ -71,7 +72,7 @@ def _solvers(methods, first, extra) -> tuple:
 def run(methods, scales, frames, extra, tick, dim=2) -> list:
     """Every method over ``frames`` held-out frames per N, frame by frame, one persistent solver each."""
     from ..external import missing
-    from ..runner import _solve, exception_row, peak_rss_mb
+    from ..runner import solve_method, exception_row, peak_rss_mb
     from ..cases import Problem
 
     rows = []
@@ -81,7 +82,7 @@ def run(methods, scales, frames, extra, tick, dim=2) -> list:
         try:
             for m in methods:
                 if not m.is_petsc and not missing(m.name):
-                    _solve(m, m.prefix, Problem(seq[0], case="sequence"), False)       # warm-up
+                    solve_method(m, m.prefix, Problem(seq[0], case="sequence"), False)       # warm-up
             for k, frame in enumerate(seq[1:]):
                 for m in methods:
                     if m.is_petsc:
@@ -91,14 +92,14 @@ def run(methods, scales, frames, extra, tick, dim=2) -> list:
                             row = exception_row(m, Problem(frame), exc)
                         row.update(method=m.name, n=n, peak_rss_mb=peak_rss_mb())
                     else:
-                        row = _solve(m, m.prefix, Problem(frame, case="sequence"), False)
+                        row = solve_method(m, m.prefix, Problem(frame, case="sequence"), False)
                     rows.append(tag(row, study="sequence", kind="frame", frame=k, first=k == 0))
                     tick()
             for m in methods:
                 ctx = _ctx(solvers[m.name]) if m.is_petsc else None
                 if ctx is not None:
                     rows.append({"study": "sequence", "kind": "apply", "method": m.name, "n": n,
-                                 **ctx.setup.apply_costs()})
+                                 **apply_costs(ctx.setup)})
         finally:
             for s in solvers.values():
                 s.destroy()

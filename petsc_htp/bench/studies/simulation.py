@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ...sim.flow import Flow
-from ...methods import Loaded
+from ..harness import Loaded
 from ...scenes.generator import Frame, row_major
 from ..aggregate import FPS_BUDGETS, group, ordered
 from ..cases import Problem, held_out_frames
@@ -89,7 +89,7 @@ def flow_frames(n, count, seed=0, dim=2) -> list:
 
 def frame_row(res, rtol) -> dict:
     """A replayed frame's row fields from :meth:`PressureSolver.solve`'s result."""
-    from ...methods import reason_name
+    from ..harness import reason_name
 
     code = res.pop("code")
     failure = (reason_name(code) if code < 0 else
@@ -128,7 +128,7 @@ def replay(method, systems, regions, reuse, extra, keep=0) -> list:
 
 def replay_external(method, systems) -> list:
     """An external solver (pyamg, AMGCL) over the recorded run, rebuilt every frame from x0 = 0."""
-    from ...methods import common_setting
+    from ..harness import common_setting
     from ..external import solve
 
     rows, rtol = [], common_setting("ksp_rtol", 1e-8)

@@ -8,13 +8,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import torch
-
-from .atomic import atomic_open
+from ..atomic import atomic_open
 
 FORMAT = "petsc_htp-checkpoint"
 VERSION = 1
-DEFAULT = Path(__file__).parent / "checkpoints" / "htp_default.pt"
+DEFAULT = Path(__file__).parent.parent / "checkpoints" / "htp_default.pt"
 
 
 class CheckpointError(ValueError):
@@ -41,6 +39,8 @@ def cached(path, default: Path, load, *extra):
 
 def atomic_save(obj, path) -> Path:
     """torch.save to a temporary file in the target folder, then rename."""
+    import torch
+
     with atomic_open(path, "wb") as fh:
         torch.save(obj, fh)
     return Path(path)
@@ -65,6 +65,8 @@ def read(path=None, fmt: str = FORMAT, version: int = VERSION, default: Path = D
     path = Path(path) if path else default
     if not path.is_file():
         raise CheckpointError(f"{what} {path} does not exist")
+    import torch
+
     try:
         obj = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a damaged file

@@ -1,0 +1,59 @@
+"""The coarse solve E^-1 of the two-level method: a PETSc PC on the Galerkin operator under ``<prefix>cs_``.
+
+By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
+one rank), or in 3-D above :data:`.sizing.COARSE_DIRECT_MAX` rows one GAMG V-cycle (a GCR to a loose tolerance
+preconditioned by GAMG on aggregation leaves). Any PETSc PC can replace it through its options.
+"""
+from __future__ import annotations
+
+from . import inner, sizing
+
+
+class CoarseSolve:
+    """The coarse solver of a :class:`~.structure.Structure`; made at the first :meth:`setup`."""
+
+    def __init__(self, st, solver, prefix):
+        self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
+        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m)
+        self.chosen = solver == "auto"
+        self.g = self.c = self.c2 = None
+
+    def setup(self, operator):
+        """Set up the solver on the coarse operator's new values (made on first use)."""
+        if self.pc is None:
+            st = self.st
+            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind)
+            if st.col_block > 1:                      # BAIJ factors shift only within the diagonal blocks
+                defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
+            self.pc, self.rest = inner.configured_pc(operator.getComm(), operator, self.prefix, defaults)
+            self.g, self.c, self.c2 = (operator.createVecLeft() for _ in range(3))
+        with inner.scoped(self.prefix, self.rest):      # PCREDUNDANT's inner solver reads its defaults now
+            self.pc.setUp()
+            if self.pc.getType() == "redundant":         # it factors at its first apply: do that here
+                self.g.set(0.0)
+                self.pc.apply(self.g, self.c)
+
+    def apply(self, g, c):
+        """c = E^-1 g."""
+        self.pc.apply(g, c)
+
+    def describe(self) -> str:
+        """The coarse solver, and why it was chosen."""
+        why = ""
+        if self.chosen:
+            limit = sizing.COARSE_DIRECT_MAX[self.st.dim]
+            direct = f"direct up to {limit}" if limit else "always direct"
+            why = f" (by the problem: {self.st.m} rows; {direct} in {self.st.dim}-D)"
+        return f"coarse solve: {inner.text(self.pc)}{why}; options -{self.prefix}*"
+
+    def nnz(self) -> int:
+        """Values the solver holds besides the operator."""
+        return inner.held(self.pc) if self.pc is not None else 0
+
+    def destroy(self):
+        """Free the PETSc objects."""
+        for name in ("pc", "g", "c", "c2"):
+            obj = getattr(self, name)
+            if obj is not None:
+                obj.destroy()
+                setattr(self, name, None)

@@ -1,0 +1,140 @@
+"""The two forms of the two-level preconditioner, applied with PETSc's operators (Q = W E^-1 W^T, B the leaf
+solve):
+
+    M = Q + (I - QA) B (I - AQ)  (balanced, symmetric)   or   M = Q + (I - QA) B  (deflated).
+
+With exact leaves D B = I, so W^T A B x = W^T x + C^T B x and the deflated form is y = v - W E^-1 C^T v with
+v = B x: one leaf solve, one coarse solve and two thin products. Started so that W^T r0 = 0
+(:meth:`Forms.presolve`), CG with it takes the iterations of the balanced form, which costs a second coarse
+solve and three more thin products and serves KSPs that need a symmetric M. Inexact leaves go through A W.
+"""
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..events import event
+
+SYMMETRIC_KSPS = ("minres", "symmlq", "cr", "pipecr", "qcg", "stcg", "gltr", "nash")   # need a symmetric M
+
+
+class Forms:
+    """Applications of M for the parts ``ops`` (:class:`~.operators.Operators`), ``leafsolver`` and ``coarse``
+    (:class:`~.coarsesolve.CoarseSolve`) on ``mat``; ``form`` is the configured one (auto, deflated, balanced)."""
+
+    def __init__(self, mat, ops, leafsolver, coarse, form):
+        self.mat, self.ops, self.B, self.coarse, self.configured = mat, ops, leafsolver, coarse, form
+        self.auto, self.forced = "deflated", None
+        self.v, self.t = mat.createVecLeft(), mat.createVecLeft()
+        self._leaf_ev, self._coarse_ev = event("HTPLeafSolve"), event("HTPCoarseSolve")
+
+    def form(self, ksp_type=None) -> str:
+        """The form in use: forced, configured, or for 'auto' the one the last :meth:`presolve` chose (deflated
+        unless ``ksp_type`` needs a symmetric M)."""
+        if self.forced or self.configured != "auto":
+            return self.forced or self.configured
+        return "balanced" if ksp_type in SYMMETRIC_KSPS else self.auto
+
+    def needs_F(self) -> bool:
+        """Whether the form in use needs F = W^T C."""
+        return self.form() == "balanced" and self.B.exact
+
+    def _leaf(self, x, v):
+        self._leaf_ev.begin()
+        self.B.apply(x, v)
+        self._leaf_ev.end()
+
+    def _coarse(self, g, c):
+        self._coarse_ev.begin()
+        self.coarse.apply(g, c)
+        self._coarse_ev.end()
+
+    def mult(self, x, y):
+        """y = M x in the form in use."""
+        ops, cs, v, t = self.ops, self.coarse, self.v, self.t
+        g, c, c2 = cs.g, cs.c, cs.c2
+        if self.form() == "deflated":
+            self._leaf(x, v)                                   # v = B x
+            if self.B.exact:
+                ops.C.multTranspose(v, g)                      # g = C^T v = (A W)^T B x - W^T x
+                g.scale(-1.0)
+            else:
+                ops.W.multTranspose(x, g)
+                g.scale(-1.0)
+                ops.AW.multTransposeAdd(v, g, g)
+                g.scale(-1.0)                                  # g = W^T x - (A W)^T B x
+            self._coarse(g, c)
+            ops.W.multAdd(c, v, y)                             # y = v + W E^-1 (W^T x - (A W)^T v)
+            return
+        ops.W.multTranspose(x, g)
+        self._coarse(g, c)                                     # c1 = E^-1 W^T x
+        if not self.B.exact:
+            ops.AW.mult(c, t)
+            t.aypx(-1.0, x)                                    # u = x - A W c1
+            self._leaf(t, v)                                   # v = B u
+            ops.AW.multTranspose(v, g)
+            self._coarse(g, c2)
+            c2.aypx(-1.0, c)
+            ops.W.multAdd(c2, v, y)                            # y = v + W (c1 - E^-1 (A W)^T v)
+            return
+        ops.C.mult(c, t)
+        t.aypx(-1.0, x)                                        # x - C c1
+        self._leaf(t, v)                                       # s = B (x - C c1)
+        ops.C.multTranspose(v, g)
+        ops.F.mult(c, c2)
+        g.axpy(-1.0, c2)                                       # C^T s - W^T C c1
+        self._coarse(g, c2)
+        c2.scale(-1.0)
+        ops.W.multAdd(c2, v, y)                                # y = s - W E^-1 (C^T s - W^T C c1)
+
+    def presolve(self, ksp, b, x, stale=False):
+        """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
+        this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP needs a symmetric
+        M or the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A)."""
+        kind = ksp.getType()
+        if self.configured == "auto":
+            self.auto = "balanced" if kind in SYMMETRIC_KSPS or stale else "deflated"
+            if self.needs_F():
+                self.ops.need_F()
+        if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:
+            return None
+        nonzero, t, cs = ksp.getInitialGuessNonzero(), self.t, self.coarse
+        if nonzero:
+            self.mat.mult(x, t)
+            t.aypx(-1.0, b)
+        else:
+            b.copy(t)
+            x.set(0.0)
+        nsp = ksp.getOperators()[0].getTransposeNullSpace()
+        if nsp:                       # KSPSolve projects b only after this call: start on the projected residual
+            nsp.remove(t)
+        self.ops.W.multTranspose(t, cs.g)
+        self._coarse(cs.g, cs.c)
+        self.ops.W.multAdd(cs.c, x, x)
+        ksp.setInitialGuessNonzero(True)
+        return nonzero
+
+    def min_rayleigh(self, probes) -> float:
+        """Smallest x^T M x / x^T x of the balanced (symmetric) M over ``probes`` random x (collective)."""
+        if self.B.exact:
+            self.ops.need_F()
+        x, y = self.mat.createVecs()
+        rng = PETSc.Random().create(self.mat.getComm())
+        self.forced = "balanced"
+        quotients = []
+        try:
+            for _ in range(probes):
+                x.setRandom(rng)
+                self.mult(x, y)
+                quotients.append(x.dot(y) / x.dot(x))
+        finally:
+            self.forced = None
+            for obj in (x, y, rng):
+                obj.destroy()
+        return float(np.min(quotients))
+
+    def destroy(self):
+        """Free the work vectors."""
+        for obj in (self.v, self.t):
+            obj.destroy()
+        self.v = self.t = None

@@ -1,0 +1,119 @@
+"""The inner PETSc solvers of the two-level method (leaf factor, coarse solver): made with their defaults set
+through PETSc's API, then ``setFromOptions`` under their own prefix, so the user's options win.
+
+A default is a PETSc option name and value under the solver's prefix (:mod:`petsc_htp.twolevel.sizing` keeps
+them so). The ones PETSc's Python API can set are set through it (PC type, factor ordering and shift, a PCKSP's
+inner KSP type, tolerance and PC); the few it cannot (GAMG's aggressive coarsening, PCREDUNDANT's inner
+solver, which exists only once set up) sit in the options database for the ``setFromOptions`` or set-up that
+reads them, and are taken out again: a setup leaves the database as it found it.
+"""
+from __future__ import annotations
+
+import contextlib
+
+from petsc4py import PETSc
+
+FACTOR_PCS = ("lu", "cholesky", "icc", "ilu")       # PC types that hold a factor
+SHIFTS = {"none": PETSc.Mat.FactorShiftType.NONE, "nonzero": PETSc.Mat.FactorShiftType.NONZERO,
+          "positive_definite": PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE,
+          "inblocks": PETSc.Mat.FactorShiftType.INBLOCKS}
+
+
+@contextlib.contextmanager
+def scoped(prefix, defaults):
+    """``defaults`` in PETSc's options database under ``prefix`` where the user set nothing, for the block only."""
+    db = PETSc.Options(prefix)
+    added = [name for name in defaults if not db.hasName(name)]
+    for name in added:
+        db.setValue(name, defaults[name])
+    try:
+        yield
+    finally:
+        for name in added:
+            db.delValue(name)
+
+
+def through_api(pc, defaults) -> dict:
+    """Set on ``pc`` the ``defaults`` its API can set; returns the others."""
+    rest = dict(defaults)
+    kind = rest.pop("pc_type", None)
+    if kind is not None:
+        pc.setType(kind)
+    if kind in FACTOR_PCS:
+        ordering = rest.pop("pc_factor_mat_ordering_type", None)
+        if ordering is not None:
+            pc.setFactorOrdering(ordering)
+        shift = rest.pop("pc_factor_shift_type", None)
+        if shift is not None:
+            pc.setFactorShift(SHIFTS[shift])
+    if kind == "ksp":
+        inner = pc.getKSP()
+        if "ksp_ksp_type" in rest:
+            inner.setType(rest.pop("ksp_ksp_type"))
+        if "ksp_ksp_rtol" in rest:
+            inner.setTolerances(rtol=float(rest.pop("ksp_ksp_rtol")))
+        sub = {k[len("ksp_"):]: rest.pop(k) for k in list(rest) if k.startswith("ksp_pc_")}
+        rest.update({"ksp_" + k: v for k, v in through_api(inner.getPC(), sub).items()})
+    return rest
+
+
+def configured_pc(comm, mat, prefix, defaults) -> tuple:
+    """A PC on ``mat`` with ``defaults`` (:func:`through_api`) and, winning over them, the options under
+    ``prefix``. Returns (the PC, the defaults its set-up still has to find in the options database)."""
+    pc = PETSc.PC().create(comm)
+    pc.setOptionsPrefix(prefix)
+    pc.setOperators(mat, mat)
+    rest = through_api(pc, defaults)
+    with scoped(prefix, rest):
+        pc.setFromOptions()
+    return pc, rest
+
+
+def held(pc) -> int:
+    """Values a solver holds on this rank besides its operator: a factor's, or a multigrid hierarchy's coarser
+    operators and interpolations, also inside a PCKSP (0 for other PC types, such as PCREDUNDANT's gathered
+    copy)."""
+    kind = pc.getType()
+    if kind == "ksp":
+        return held(pc.getKSP().getPC())
+    if kind in FACTOR_PCS:
+        return int(pc.getFactorMatrix().getInfo()["nz_used"])
+    if kind not in ("gamg", "mg"):
+        return 0
+    levels = pc.getMGLevels()
+    mats = [pc.getMGSmoother(level).getOperators()[0] for level in range(levels - 1)]
+    mats += [pc.getMGInterpolation(level) for level in range(1, levels)]
+    return int(sum(m.getInfo()["nz_used"] for m in mats))
+
+
+def text(pc) -> str:
+    """What the solver ``pc`` does, in a few words."""
+    kind = pc.getType()
+    if kind in ("gamg", "mg"):
+        return f"one {kind.upper()} V-cycle ({pc.getMGLevels()} levels)"
+    if kind == "ksp":
+        inner = pc.getKSP()
+        return (f"{inner.getType().upper()} to rtol {inner.getTolerances()[0]:g} preconditioned by "
+                f"{inner.getPC().getType().upper()}")
+    if kind == "redundant":
+        return f"LU on each of the {pc.getComm().getSize()} ranks (redundant)"
+    return kind.upper() if kind in FACTOR_PCS else kind
+
+
+def view(pc, viewer, label):
+    """``label`` then PCView of ``pc``, indented, on ``viewer`` (a solver on COMM_SELF: rank 0's, as PCBJACOBI
+    shows its first block)."""
+    viewer.printfASCII(f"  {label}\n")
+    viewer.pushASCIITab()
+    viewer.pushASCIITab()
+    try:
+        if pc.getComm().getSize() == viewer.getComm().getSize():
+            pc.view(viewer)
+        else:
+            sub = viewer.getSubViewer(PETSc.COMM_SELF)
+            if viewer.getComm().getRank() == 0:
+                pc.view(sub)
+            viewer.restoreSubViewer(sub)
+    finally:
+        viewer.popASCIITab()
+        viewer.popASCIITab()

@@ -1,0 +1,144 @@
+"""W's values on one rank: every leaf's coarse vectors (:mod:`.coarsespace`) in W's pattern, with the null
+components' columns left out (:mod:`.nullspace`).
+
+The eig and learned spaces take one inverse-iteration step of the leaves' Neumann matrix S (one sparse matrix
+per rank, its factor PETSc's, one multi-vector triangular solve). Aggregation leaves with at most one such vector
+take it in numpy without the padded layout (:func:`.coarsespace.flat`); other leaves go through the padded basis
+(:func:`.coarsespace.basis`).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+from . import coarsespace, nullspace
+from .leafsolvers import seqaij
+
+
+class CoarseSpace:
+    """The coarse vectors of a :class:`~.structure.Structure` (see the module docstring).
+
+    Parameters
+    ----------
+    st : Structure
+    make_pc : callable
+        Mat -> PC, the factor of S (configured like the leaf factor).
+    """
+
+    def __init__(self, st, make_pc):
+        lay = st.lay
+        self.st, self.values = st, np.zeros(st.w_rows.size)
+        self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
+        self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra
+        if self.flat:
+            self.lead_mask = st.w_j < st.lead
+            piece = lay.pieces.label[st.w_p]
+            mine = ~self.lead_mask & (st.w_j - st.lead == st.piece_index[piece])
+            self.fixed = np.where(mine, 1.0 / np.sqrt(lay.pieces.size[piece]), 0.0)
+        else:
+            self.constants = coarsespace.piece_constants(lay, st.piece_index)
+            self.src = lay.pos[st.w_p] * (st.lead + self.constants.shape[2]) + st.w_j
+        self.seeds = coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, st.lead) if st.lead else None
+        self.s_values = self.S = self.S_factor = self.S_csr = self._dense = None
+        self._zeroed_key = None
+        if st.lead:
+            self.s_values = np.zeros(lay.d_src.size)
+            self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, lay.n)
+            self.S_factor = make_pc(self.S)
+            self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
+
+    def null(self, mat, data) -> tuple:
+        """Null components (``mat``'s attached MatNullSpace, else A's row sums ``data``), and this rank's pieces
+        to ground (a boolean array); the columns of the pieces to drop are kept for :meth:`finish`."""
+        st, lay = self.st, self.st.lay
+        nsp = mat.getNullSpace()
+        reduce = st.coll.max_array if st.coll.size > 1 else None
+        if nsp.handle:
+            null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
+                                               st.comp_of_row, st.n_comp, reduce)
+        else:
+            diag = data[lay.d_src[lay.d_diag]]
+            rowsum = np.bincount(lay.entry_row, data, minlength=lay.n)
+            null = nullspace.null_by_rowsums(rowsum, diag, st.comp_of_row, st.n_comp, reduce)
+        drop, ground = nullspace.dropped(null, st.comp_of_piece, st.isolated)
+        self.dropped = st.piece_col[st.my_pieces(drop) & st.has_col]
+        self.null_components = int(null.sum())
+        return st.my_pieces(ground)
+
+    def compute(self, d_values, o_values, o_rows, seeds=None):
+        """New coarse vectors from D's values and the couplings ``o_values`` (rows ``o_rows``, leaves' order);
+        ``seeds`` replaces the smooth seeds (learned space)."""
+        st, lay = self.st, self.st.lay
+        diag = None
+        if st.lead:                                    # one inverse-iteration step of the leaves' Neumann matrices
+            outside = np.bincount(o_rows, o_values, minlength=lay.n)
+            diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
+            np.copyto(self.s_values, d_values)
+            self.s_values[lay.d_diag] = diag
+            self.S.stateIncrease()
+            self.S_factor.setUp()
+            seeds = self.seeds if seeds is None else seeds
+        self.age = 0
+        if self.flat:
+            np.copyto(self.values, self.fixed)
+            self.kept = st.ncols
+            if st.q:
+                y, ok = coarsespace.flat(self.solve_neumann(seeds)[:, 0], lay.leaf, lay.pieces)
+                self.values[self.lead_mask] = y[st.w_p[self.lead_mask]]
+                self.kept = st.ncols - ((st.ncols > 0) & ~ok)
+            return
+        P, self.kept = coarsespace.basis(lay, self.constants, seeds if st.lead else None, self.solve_neumann,
+                                         st.extra, self.S_csr, diag, st.cfg.tol)
+        np.take(P.reshape(-1), self.src, out=self.values)
+
+    def finish(self) -> np.ndarray:
+        """W's values with the dropped pieces' columns zeroed (a copy only when some are)."""
+        if not self.dropped.size:
+            return self.values
+        values = self.values.copy()
+        values[self._zeroed(self.dropped)] = 0.0
+        return values
+
+    def _zeroed(self, dropped) -> np.ndarray:
+        """W's entries in the columns ``dropped`` (cached: the null space rarely changes)."""
+        key = dropped.tobytes()
+        if self._zeroed_key != key:
+            gone = np.zeros(int(self.st.ncols.sum()), dtype=bool)
+            gone[dropped - self.st.leaf_col[0]] = True
+            self._zeroed_key, self._zeroed_at = key, np.flatnonzero(gone[self.st.w_local_col])
+        return self._zeroed_at
+
+    def solve_neumann(self, X) -> np.ndarray:
+        """S^-1 X for an (n, q) array, one multi-vector triangular solve (a view of a work array)."""
+        if self._dense is None or self._dense[0].shape != X.shape:
+            self._free_dense()
+            rhs = np.empty(X.shape, order="F")
+            out = np.empty(X.shape, order="F")
+            self._dense = (rhs, out, PETSc.Mat().createDense(X.shape, array=rhs, comm=PETSc.COMM_SELF),
+                           PETSc.Mat().createDense(X.shape, array=out, comm=PETSc.COMM_SELF))
+        rhs, out, R, Y = self._dense
+        np.copyto(rhs, X)
+        R.stateIncrease()
+        self.S_factor.getFactorMatrix().matSolve(R, Y)
+        return out
+
+    def _free_dense(self):
+        if self._dense is not None:
+            self._dense[2].destroy()
+            self._dense[3].destroy()
+        self._dense = None
+
+    def nnz(self) -> int:
+        """Values held: S and its factor."""
+        if self.S is None:
+            return 0
+        return int(self.S.getInfo()["nz_used"] + self.S_factor.getFactorMatrix().getInfo()["nz_used"])
+
+    def destroy(self):
+        """Free the PETSc objects."""
+        self._free_dense()
+        for obj in (self.S, self.S_factor):
+            if obj is not None:
+                obj.destroy()
+        self.S = self.S_factor = None

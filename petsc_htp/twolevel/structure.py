@@ -1,0 +1,142 @@
+"""The pattern-fixed structure of the two-level method on one rank: what the analysis of a nonzero pattern
+decides, in numpy (collectives carry only sizes, offsets and the components' edges).
+
+The problem's shape and dimension (:mod:`.graphshape`, :mod:`.sizing`), the leaves (:mod:`.leaves`) and their
+layout (:mod:`.leaflayout`), the global piece numbering and A's connected components (:mod:`.nullspace`), the
+coarse columns of every leaf and W's pattern, and for aggregation leaves where their weak couplings sit (new
+values that moved the couplings call for new leaves: :meth:`Structure.moved`).
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import nullspace, sizing
+from ..collective import Collective
+from ..petscmat import ghost_values
+from .aggregation import THETA
+from .graphshape import graph_shape
+from .leaflayout import layout
+from .leaves import choose_leaves
+
+WEAK_GROWTH = 2.0       # aggregation leaves are made anew once they hold this many times their weak couplings
+
+
+class Structure:
+    """The analysis of one pattern (see the module docstring).
+
+    Parameters
+    ----------
+    mat : petsc4py.PETSc.Mat
+        The operator (sizes, ownership, and one scatter for other ranks' pieces).
+    rows : scipy.sparse.csr_matrix
+        This rank's rows of ``mat`` (global columns, sorted).
+    coords : numpy.ndarray (n, d), optional
+        This rank's row coordinates (Morton leaves).
+    cfg : Config
+    net_rank : int, optional
+        The coarse network's vectors per leaf (learned coarse space).
+    """
+
+    def __init__(self, mat, rows, coords, cfg, net_rank=None):
+        self.coll = coll = Collective(mat.getComm())
+        start, end = mat.getOwnershipRange()
+        self.N = mat.getSize()[0]
+        self.block = rows if coll.size == 1 else rows[:, start:end].tocsr()
+        self.shape = graph_shape(self.block) if coords is None else None
+        local = sizing.dimension(None if coords is None else coords.shape[1], self.shape)
+        self.dim = int(coll.max_array(np.array([local]))[0])
+        self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
+        self.cfg = cfg = self.resolved(cfg)
+        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf)
+        self.lay = layout(rows, start, self.leaves)
+        self._components(mat, rows)
+        self._columns(net_rank)
+        if self.leaves.kind == "aggregation":             # where each off-diagonal entry of D and its diagonals sit
+            lay = self.lay
+            r = np.repeat(np.arange(lay.n), np.diff(lay.d_indptr))
+            off = r != lay.d_indices
+            self._weak_src = lay.d_src[off]
+            self._weak_row, self._weak_col = lay.d_src[lay.d_diag[r[off]]], lay.d_src[lay.d_diag[lay.d_indices[off]]]
+            self.weak_made = self._weak_inside(rows.data)
+
+    def resolved(self, cfg):
+        """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
+        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N),
+                                   coarse=sizing.COARSE[self.dim] if cfg.coarse == "auto" else cfg.coarse)
+
+    def _weak_inside(self, data) -> int:
+        """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
+        vals = data[self._weak_src]
+        return int(np.count_nonzero((vals * vals < THETA * THETA * np.abs(data[self._weak_row] * data[self._weak_col]))
+                                    & (vals != 0)))
+
+    def moved(self, rows) -> bool:
+        """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
+        :data:`WEAK_GROWTH` times the weak couplings they held when made (plus 0.1 % of the rows), so leaves made
+        anew would follow the couplings better (a coefficient jump that moved; 5x on a DMDA frame with new
+        inclusions, which then takes 45 CG iterations against 26). Always False for other leaves."""
+        if self.leaves.kind != "aggregation":
+            return False
+        return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n
+
+    def _components(self, mat, rows):
+        """Global piece numbering and the connected components of A over all ranks."""
+        lay, coll = self.lay, self.coll
+        pc = lay.pieces
+        self.piece_offset = coll.exscan(pc.n_pieces)
+        self.n_pieces = coll.sum(pc.n_pieces)
+        row_piece = pc.label[lay.iperm] + self.piece_offset          # global piece of each of A's local rows
+        self.isolated = np.zeros(self.n_pieces, dtype=bool)
+        self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
+        if coll.size == 1:                                            # A's own components, read off its rows
+            self.n_comp, labels = nullspace.graph_components(rows)
+            self.comp_of_row = labels
+            self.comp_of_piece = np.zeros(self.n_pieces, dtype=np.int64)
+            self.comp_of_piece[row_piece] = labels
+            return
+        o_rows, o_cols = lay.o_rows, rows.indices[lay.o_src].astype(np.int64)
+        start, n = lay.start, lay.n
+        local = (o_cols >= start) & (o_cols < start + n)
+        other = np.zeros(o_cols.size, dtype=np.int64)
+        other[local] = row_piece[o_cols[local] - start]
+        if not local.all():
+            other[~local] = ghost_values(mat, row_piece, o_cols[~local]).astype(np.int64)
+        key = np.unique(row_piece[o_rows] * self.n_pieces + other)
+        edges = np.stack([key // self.n_pieces, key % self.n_pieces], 1)
+        self.n_comp, self.comp_of_piece = nullspace.components(self.n_pieces, coll.gather_rows(edges))
+        self.comp_of_row = self.comp_of_piece[row_piece]              # of A's local rows
+        self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
+
+    def _columns(self, net_rank):
+        """Coarse columns of every leaf (modes, extras, then one per piece but decoupled ones), their global numbers
+        and W's pattern. A leaf of decoupled rows alone has no column."""
+        lay, cfg = self.lay, self.cfg
+        lv, pc = lay.leaves, lay.pieces
+        self.q = 0 if cfg.coarse == "const" else (net_rank if cfg.coarse == "learned" else cfg.rank) - 1
+        self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
+        self.lead = lead = self.q + self.extra
+        self.has_col = ~lay.decoupled
+        before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
+        self.piece_index = index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)   # among its leaf's
+        count = np.bincount(pc.leaf[self.has_col], minlength=lv.n_leaves)
+        self.ncols = np.where(count > 0, lead + count, 0)
+        live = self.ncols[self.ncols > 0]
+        sizes = self.coll.max_array(np.array([live.max(initial=0), -live.min(initial=2 ** 40)]))
+        self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
+        first = self.coll.exscan(self.ncols.sum())
+        self.m = self.coll.sum(self.ncols.sum())
+        self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
+        self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
+        per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
+        row = np.repeat(np.arange(lay.n), per_row)
+        self.w_j = np.arange(row.size) - np.repeat(np.cumsum(per_row) - per_row, per_row)    # column within the leaf
+        self.w_p = lay.iperm[row]                                     # the row in the leaves' order
+        self.w_rows = row + lay.start
+        self.w_cols = self.leaf_col[lay.leaf[self.w_p]] + self.w_j
+        self.w_local_col = self.w_cols - first                        # W's columns of this rank's rows are its own
+
+    def my_pieces(self, flags) -> np.ndarray:
+        """This rank's part of a global per-piece array."""
+        return flags[self.piece_offset:self.piece_offset + self.lay.pieces.n_pieces]

@@ -1,0 +1,61 @@
+"""HTPPC feels like PETSc: -ksp_view shows the inner solvers, -log_view an event per phase, a setup leaves the
+options database as it found it, and the default neither imports nor runs torch."""
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from petsc_htp.events import EVENTS
+
+HERE = Path(__file__).resolve().parent
+
+
+def run(ranks, *args):
+    """tests/native_case.py on ``ranks`` ranks with PETSc options ``args``; its output."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin:/usr/local/bin")
+    assert mpiexec, "mpiexec not found (the Makefile installs MPICH)"
+    proc = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(HERE / "native_case.py"), *args],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc.stdout
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_ksp_view_shows_the_inner_solvers_and_log_view_an_event_per_phase(ranks):
+    out = run(ranks, "-ksp_view", "-log_view")
+    assert re.search(r"reason [1-9]\d* iterations (\d+)", out), out[-2000:]
+    pcs = re.findall(r"PC Object: ?(\(\w+\))? \d+ MPI process", out)
+    assert len(pcs) >= 3 and "(htp_leaf_)" in pcs and "(htp_cs_)" in pcs, pcs
+    assert "leaf solver:" in out and "coarse solver:" in out and "variant twolevel: two-level preconditioner" in out
+    events = {line.split()[0] for line in out.splitlines() if line.split() and line.split()[0] in EVENTS}
+    assert len(events) >= 6 and {"HTPSetup", "HTPApply", "HTPLeafSolve", "HTPCoarseSolve"} <= events, events
+    assert "inner: {'leaf solver': 'htp_leaf_ cholesky', 'coarse solver': 'htp_cs_ " in out
+    assert "leaf htp_leaf_; coarse htp_cs_" in out and "torch loaded: False" in out
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks, args", [(1, ()), (2, ()),                     # LU; PCREDUNDANT on 2 ranks
+                                         (1, ("-htp_coarse_solver", "gamg")),  # GCR + GAMG (aggressive: 0)
+                                         (2, ("-case", "dmda3d", "-n", "8000", "-htp_direct_max", "0"))])
+def test_a_setup_leaves_the_options_database_as_it_found_it(ranks, args):
+    out = run(ranks, *args)
+    assert "options unchanged: True []" in out, out[-2000:]
+    assert re.search(r"reason [1-9]", out), out[-2000:]
+
+
+@pytest.mark.mpi
+def test_user_options_win_over_the_inner_defaults():
+    out = run(1, "-htp_leaf_pc_type", "lu", "-htp_cs_pc_type", "cholesky")
+    assert "'leaf solver': 'htp_leaf_ lu', 'coarse solver': 'htp_cs_ cholesky'" in out, out[-2000:]
+    assert "options unchanged: True []" in out
+
+
+def test_import_leaves_torch_out():
+    code = ("import sys, petsc4py; petsc4py.init(); from petsc4py import PETSc; import petsc_htp; "
+            "from petsc_htp import HTPPC; import petsc_htp.variants, petsc_htp.twolevel.composed; "
+            "sys.exit('torch' in sys.modules)")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
