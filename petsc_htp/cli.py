@@ -136,6 +136,13 @@ def main(argv=None) -> int:
     except ValueError as exc:
         print(f"petsc-htp {args.cmd}: error: {exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        if exc.name != "torch":
+            raise
+        from .variants import TORCH_EXTRA
+
+        print(f"petsc-htp {args.cmd}: error: it runs torch, which is not installed: {TORCH_EXTRA}", file=sys.stderr)
+        return 2
     return 0
 
 

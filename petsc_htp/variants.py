@@ -27,8 +27,8 @@ from importlib import import_module
 
 from .twolevel.config import Config
 
-VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
+VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
 
 
 def require_torch(what: str):

@@ -7,8 +7,8 @@ import shutil
 import numpy as np
 import pytest
 
-pytest.importorskip("petsc4py")
-pytest.importorskip("pyamg")
+import petsc4py  # noqa: F401,E402  (missing components fail, never skip)
+import pyamg  # noqa: F401,E402
 
 from petsc_htp.training import checkpoint  # noqa: E402
 from petsc_htp.bench import aggregate, main, store  # noqa: E402

@@ -77,10 +77,11 @@ def _pass(M, theta) -> tuple:
 
 
 def _graph(M, agg, count) -> sp.csr_matrix:
-    """The aggregates' graph: each pair's couplings summed in magnitude (self couplings on the diagonal)."""
-    rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
-    G = sp.csr_matrix((np.abs(M.data), (agg[rows], agg[M.indices])), shape=(count, count))
-    G.sum_duplicates()
+    """The aggregates' graph: each pair's couplings summed in magnitude (self couplings on the diagonal), as
+    P^T |M| P with P the aggregation matrix (scipy's compiled sparse products)."""
+    n = M.shape[0]
+    P = sp.csr_matrix((np.ones(n), agg, np.arange(n + 1)), shape=(n, count))
+    G = (P.T.tocsr() @ abs(M) @ P).tocsr()
     G.sort_indices()
     return G
 

@@ -55,10 +55,10 @@ class Structure:
         self._columns(net_rank)
         if self.leaves.kind == "aggregation":             # where each off-diagonal entry of D and its diagonals sit
             lay = self.lay
-            r = np.repeat(np.arange(lay.n), np.diff(lay.d_indptr))
+            r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
             off = r != lay.d_indices
-            self._weak_src = lay.d_src[off]
-            self._weak_row, self._weak_col = lay.d_src[lay.d_diag[r[off]]], lay.d_src[lay.d_diag[lay.d_indices[off]]]
+            self._weak_src, self._weak_row, self._weak_col = lay.d_src[off], r[off], lay.d_indices[off].astype(np.int32)
+            self._diag_src = lay.d_src[lay.d_diag]
             self.weak_made = self._weak_inside(rows.data)
 
     def resolved(self, cfg):
@@ -69,7 +69,8 @@ class Structure:
     def _weak_inside(self, data) -> int:
         """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
         vals = data[self._weak_src]
-        return int(np.count_nonzero((vals * vals < THETA * THETA * np.abs(data[self._weak_row] * data[self._weak_col]))
+        diag = np.abs(data[self._diag_src])
+        return int(np.count_nonzero((vals * vals < THETA * THETA * (diag[self._weak_row] * diag[self._weak_col]))
                                     & (vals != 0)))
 
     def moved(self, rows) -> bool:
