@@ -81,17 +81,19 @@ class TwoLevel:
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
-        if self.direct(mat, A, coords):
+        kind = self.direct(mat, A, coords)
+        if kind is not None:
             from .twolevel.direct import DirectPC
 
-            return DirectPC(mat, A, self.config(), self.prefix + "htp_")
+            return DirectPC(mat, A, kind, self.prefix + "htp_")
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
-    def direct(self, mat, A, coords) -> bool:
-        """Whether one sparse factor serves ``mat`` (this rank's rows ``A``): one rank, no two-level option set, and
-        at most ``-htp_direct_max`` rows, or with -1 :data:`sizing.DIRECT_MAX` rows of its dimension."""
+    def direct(self, mat, A, coords):
+        """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``), or None: one rank, no
+        two-level option set, and :func:`sizing.whole_factor` by the problem, or with ``-htp_direct_max n`` >= 0
+        Cholesky up to n rows."""
         from .twolevel import sizing
         from .twolevel.graphshape import graph_shape
 
@@ -99,14 +101,20 @@ class TwoLevel:
         plain = (o.leaf, o.ordering, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank, o.form,
                  o.coarse_space_every) == (0, "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
         n = mat.getSize()[0]
-        if mat.getComm().getSize() > 1 or not plain or n > max(o.direct_max, *sizing.DIRECT_MAX.values()):
-            return False
+        if mat.getComm().getSize() > 1 or not plain:
+            return None
         if o.direct_max >= 0:
-            return n <= o.direct_max
-        if n <= min(sizing.DIRECT_MAX.values()):
-            return True
-        shape = graph_shape(A) if coords is None else None
-        return n <= sizing.DIRECT_MAX[sizing.dimension(None if coords is None else coords.shape[1], shape)]
+            return "cholesky" if n <= o.direct_max else None
+        per_row = A.nnz / max(n, 1)
+        if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
+            return None
+        if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
+            return "cholesky"
+        if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
+            return "icc"                                                  # the same in any dimension
+        shape = graph_shape(A, weak=False, samples=8) if coords is None else None
+        dim = sizing.dimension(None if coords is None else coords.shape[1], shape)
+        return sizing.whole_factor(dim, n, per_row, coords is None)
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""

@@ -113,7 +113,7 @@ def test_default_converges_within_40_iterations_on_foreign_matrices(case):
 
 def test_decoupled_rows_get_no_coarse_vector():
     A, b = foreign.dmda(3, 20)
-    reason, its, relres, ksp, _ = solve(A, b)
+    reason, its, relres, ksp, _ = solve(A, b, htp_direct_max="0")       # the two-level method at this size
     setup = ksp.getPC().getPythonContext().setup
     lone = int(decoupled_rows(A).sum())
     assert reason > 0 and its <= 40 and relres <= 1e-8
@@ -124,12 +124,15 @@ def test_decoupled_rows_get_no_coarse_vector():
 
 @pytest.mark.parametrize("name", list(pyamg_cases()))
 @pytest.mark.parametrize("ksp_type", ["cg", "gmres", "minres"])
-def test_small_matrices_are_factored_once_and_any_ksp_converges(name, ksp_type):
+def test_small_matrices_get_one_factor_and_any_ksp_converges(name, ksp_type):
+    """Sparse rows: one Cholesky factor (one iteration); richer rows (9-point, P1, elasticity-like): ICC(0)."""
     A, b = pyamg_cases()[name]
-    assert A.shape[0] <= sizing.DIRECT_MAX[3]
     reason, its, relres, ksp, _ = solve(A, b, ksp_type)
-    assert reason > 0 and its <= 2 and relres <= 1e-8, (reason, its, relres)
-    assert lines(ksp).startswith("direct:")
+    assert reason > 0 and relres <= 1e-8, (reason, its, relres)
+    text = lines(ksp)
+    exact = A.nnz / A.shape[0] <= sizing.RICH_ROW
+    assert text.startswith("whole matrix: " + ("one sparse Cholesky factor" if exact else "ICC(0)")), text
+    assert its <= 2 or not exact
 
 
 def test_small_singular_matrix_is_grounded():
@@ -145,13 +148,17 @@ def test_direct_max_zero_keeps_the_two_level_method():
     assert reason > 0 and 2 < its <= 40 and "leaves: aggregation" in lines(ksp)
 
 
-@pytest.mark.parametrize("case, n, direct", [("dmda2d", 7900, True), ("dmda2d", 8200, False),
-                                             ("dmda3d", 1000, True), ("dmda3d", 1331, False)])
-def test_the_small_matrix_factor_is_sized_by_the_dimension(case, n, direct):
+@pytest.mark.parametrize("case, n, kind", [("dmda2d", 7900, "cholesky"), ("dmda2d", 8200, None),
+                                           ("dmda3d", 1000, "ICC(0)"), ("dmda3d", 8000, "ICC(0)"),
+                                           ("dmda3d", 9261, None), ("fem_tri", 4000, "ICC(0)")])
+def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
+    """sizing.whole_factor: Cholesky for sparse 2-D rows up to DIRECT_MAX, ICC(0) for richer rows or a 3-D graph
+    up to WHOLE_ICC_MAX, the two-level method above."""
     A, b = CASES[case](n, 0)
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and relres <= 1e-8
-    assert lines(ksp).startswith("direct:") == direct == (A.shape[0] <= sizing.DIRECT_MAX[int(case[4])])
+    text = lines(ksp)
+    assert (text.startswith("whole matrix:") and kind in text) if kind else "leaves: aggregation" in text, text
 
 
 def test_new_leaves_when_the_couplings_move_and_not_otherwise():

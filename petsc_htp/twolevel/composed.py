@@ -109,10 +109,9 @@ class TwoLevelPC:
             else:
                 self.space.compute(self.d_values, self.ops.o_values, self.ops.o_perm_rows, self._seeds(rows, density))
         with phase("HTPProducts", T, "products"):
-            self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F(),
-                              self.coarse.solver == "lu")
+            self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
-            self.coarse.setup(self.ops.coarse_operator)
+            self.coarse.setup(self.ops)
         self.times = T
         self.numeric_count += 1
 

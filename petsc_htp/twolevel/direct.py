@@ -1,7 +1,9 @@
-"""A small matrix's preconditioner: one sparse Cholesky factor of the whole matrix (one iteration).
+"""A small matrix's preconditioner: one factor of the whole matrix, exact (sparse Cholesky, one iteration) or
+incomplete (ICC(0)).
 
-Below :data:`petsc_htp.twolevel.sizing.DIRECT_MAX` rows on one rank, a sparse factor costs less than building
-leaves, a coarse space and their products (sizing's docstring has the measurement). A singular matrix (an
+Below the sizes of :func:`petsc_htp.twolevel.sizing.whole_factor` on one rank, a factor of the whole matrix costs
+less than building leaves, a coarse space and their products (sizing's docstring has the measurement). A
+singular matrix (an
 attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal entry of
 each null component is raised by its own magnitude, so the factor exists and is exact on vectors orthogonal to
 the component's constant, which is what a KSP with the null space attached hands over. The factor's inertia
@@ -17,7 +19,9 @@ from petsc4py import PETSc
 from . import nullspace
 from .inner import configured_pc
 
-FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}
+FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
+           "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
+                   "pc_factor_shift_type": "positive_definite"}}
 
 
 class DirectPC:
@@ -29,14 +33,15 @@ class DirectPC:
         A sequential AIJ operator.
     rows : scipy.sparse.csr_matrix
         Its rows (the analysed pattern).
-    cfg : Config
+    kind : str
+        cholesky or icc (:data:`FACTORS`).
     prefix : str
         Options prefix of the factor: ``<prefix>leaf_``.
     """
 
-    def __init__(self, mat, rows, cfg, prefix):
+    def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
-        self.mat, self.cfg, self.prefix = mat, cfg, prefix + "leaf_"
+        self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
         self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
         self.G = self.pc = None
         self.age, self.times, self.null_components = 0, {}, 0
@@ -77,9 +82,10 @@ class DirectPC:
             self.G.assemble()
             target = self.G
         if self.pc is None:
-            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, FACTOR)[0]
+            factor = FACTORS[self.kind]
+            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, factor)[0]
             self.ordering = PETSc.Options(self.prefix).getString("pc_factor_mat_ordering_type",
-                                                                 FACTOR["pc_factor_mat_ordering_type"])
+                                                                 factor["pc_factor_mat_ordering_type"])
         else:
             self.pc.setOperators(target, target)
         self.pc.setUp()
@@ -111,7 +117,9 @@ class DirectPC:
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
         n = self.mat.getSize()[0]
-        return [f"direct: {n} rows, at most the size where one sparse Cholesky factor is cheapest "
+        what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
+                "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
+        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest "
                 f"({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
                 f"options -{self.prefix}*)"
                 + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),

@@ -42,7 +42,8 @@ class GraphShape:
     def describe(self) -> str:
         """One line for ``-ksp_view``."""
         growth = "n/a" if np.isnan(self.growth) else f"{self.growth:.2f}"
-        return f"graph: {self.dim}-D (ball growth exponent {growth}), {100 * self.weak:.0f}% weak couplings"
+        weak = "" if np.isnan(self.weak) else f", {100 * self.weak:.0f}% weak couplings"
+        return f"graph: {self.dim}-D (ball growth exponent {growth}){weak}"
 
 
 def _ball_sizes(indptr, indices, seeds, radius) -> np.ndarray:
@@ -74,17 +75,18 @@ def _weak_share(A, every) -> float:
     return float(1.0 - strong.mean()) if strong.size else 0.0
 
 
-def graph_shape(A, seed=0) -> GraphShape:
-    """The shape of a square CSR ``A``'s graph (nonzero entries only)."""
+def graph_shape(A, seed=0, weak=True, samples=SAMPLES) -> GraphShape:
+    """The shape of a square CSR ``A``'s graph (nonzero entries only) from ``samples`` balls; ``weak`` False
+    leaves the share of weak couplings out (nan), when only the dimension is wanted."""
     n = A.shape[0]
     rows = np.repeat(np.arange(n), np.diff(A.indptr))
     off = (A.data != 0) & (A.indices != rows)
-    weak = _weak_share(A, max(1, n // WEAK_ROWS))
+    weak = _weak_share(A, max(1, n // WEAK_ROWS)) if weak else float("nan")
     coupled = np.flatnonzero(np.bincount(rows[off], minlength=n) > 0)
-    if coupled.size < SAMPLES:
+    if coupled.size < samples:
         return GraphShape(2, float("nan"), weak)
     indptr = np.concatenate(([0], np.cumsum(np.bincount(rows[off], minlength=n))))
-    seeds = np.random.default_rng(seed).choice(coupled, SAMPLES, replace=False)
+    seeds = np.random.default_rng(seed).choice(coupled, samples, replace=False)
     small, large = _ball_sizes(indptr, A.indices[off].astype(np.int64), seeds, RADIUS)
     growth = float(np.median(np.log2(large / small)))
     return GraphShape(3 if growth > CUT else 2, growth, weak)

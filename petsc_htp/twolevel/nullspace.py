@@ -72,7 +72,10 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves) -> Pieces:
 
 def graph_components(A) -> tuple:
     """(number, label of each row) of the connected components of a scipy matrix's nonzero entries."""
-    graph = A if np.all(A.data != 0) else A.multiply(A != 0).tocsr()
+    graph = A
+    if not np.all(A.data != 0):
+        graph = A.copy()
+        graph.eliminate_zeros()
     return connected_components(graph, directed=False)
 
 

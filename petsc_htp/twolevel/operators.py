@@ -41,9 +41,9 @@ class Operators:
         np.take(data, self.st.lay.o_src, out=self.o_values)
         self.O.setValuesCOO(self.o_values)
 
-    def products(self, values, exact, need_F, block_lu):
+    def products(self, values, exact, need_F):
         """W's ``values``, then C = O W, A W (``exact`` False), E = W^T A W lifted, F = W^T C (``need_F``) and E as
-        BAIJ (``block_lu``: block LU kernels, a third faster to factor and to apply)."""
+        BAIJ where :meth:`blocked` made it."""
         self.W.setValuesCOO(values)
         first = self.C is None
         self.C = self.O.matMult(self.W, result=self.C)
@@ -57,8 +57,15 @@ class Operators:
         if self.F is not None or need_F:
             self.F = self.W.transposeMatMult(self.C, result=self.F)
         self._lifted()
-        if block_lu and self.st.col_block > 1:
-            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb or PETSc.Mat())
+        if self.Eb is not None:
+            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=self.Eb)
+
+    def blocked(self) -> PETSc.Mat:
+        """E as BAIJ in W's column blocks, kept up to date from now on (block LU kernels: a third faster to factor
+        and to apply)."""
+        if self.Eb is None:
+            self.Eb = self.E.convert(PETSc.Mat.Type.BAIJ, out=PETSc.Mat())
+        return self.Eb
 
     def _lifted(self):
         """E's zero diagonal entries (unused columns) raised to E's largest diagonal magnitude over all ranks."""
@@ -74,11 +81,6 @@ class Operators:
         """F = W^T C (made on first use, then kept up to date by :meth:`products`)."""
         if self.F is None:
             self.F = self.W.transposeMatMult(self.C)
-
-    @property
-    def coarse_operator(self) -> PETSc.Mat:
-        """E, as BAIJ where that was made."""
-        return self.Eb or self.E
 
     def nnz(self) -> int:
         """Values held on this rank: W, C, E, F and A W."""

@@ -20,13 +20,21 @@ Below :data:`DIRECT_MAX` rows one sparse Cholesky factor of the whole matrix (ne
 than the two-level setup: the foreign study's small-matrix sweep (``petsc-htp bench --studies foreign --methods
 cg_htp_direct cg_htp_twolevel --foreign-scales 500 1000 2000 4000 8000 16000``; README) has the factor ahead up
 to about 8000 rows in 2-D (15 against 21 ms at 7921) and 1000 in 3-D (3.5 against 4.9 ms; 12.5 against 6.8 at
-2197), where its fill grows as N^(4/3).
+2197), where its fill grows as N^(4/3). Where rows hold more than :data:`RICH_ROW` stored nonzeros (9-point
+stencils, P1 triangles, anything 3-D) the exact factor's fill grows with them and ICC(0) of the whole matrix
+with its CG iterations costs less (the same sweep with ``cg_icc``: a third to a seventh of the Cholesky time at
+1000-8000 rows); on a bare 3-D matrix ICC(0) also beats the two-level method up to :data:`WHOLE_ICC_MAX` rows
+(DMDA with coefficient jumps 1e3 to 1e10 and P1 tets: 8-13 against 18-20 ms at 20^3; at 25^3 a contrast of
+1e10 already takes 198 ICC iterations, 47 against 36 ms). With coordinates attached, the project's multiphase
+frames, the two-level method stays ahead (25.6 against 44.9 ms per frame at 32^3 in sequence mode).
 
 PETSc-free (the fast path imports it).
 """
 from __future__ import annotations
 
 DIRECT_MAX = {2: 8000, 3: 1000}    # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
+WHOLE_ICC_MAX = {2: 8000, 3: 8000}  # bare matrices: rows up to which ICC(0) of the whole matrix beats the two-level
+RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
@@ -45,6 +53,18 @@ def dimension(coords_dim, shape) -> int:
     if coords_dim is not None:
         return 3 if int(coords_dim) == 3 else 2
     return shape.dim
+
+
+def whole_factor(dim: int, n: int, per_row: float, bare: bool):
+    """The factor of the whole matrix that serves an ``n``-row matrix with ``per_row`` stored nonzeros per row in
+    ``dim`` dimensions best, or None (the two-level method). A bare matrix (no coordinates) gets ICC(0) where rows
+    are rich or the graph is 3-D (its fill stays that of A while the exact factor's grows with the couplings per
+    row) up to :data:`WHOLE_ICC_MAX` rows, else a sparse Cholesky factor up to :data:`DIRECT_MAX`; a matrix with
+    coordinates attached (the project's own frames) the Cholesky factor up to :data:`DIRECT_MAX` (see the module
+    docstring)."""
+    if bare and (per_row > RICH_ROW or dim == 3):
+        return "icc" if n <= WHOLE_ICC_MAX[dim] else None
+    return "cholesky" if n <= DIRECT_MAX[dim] else None
 
 
 def leaf_size(dim: int, n: int) -> int:
