@@ -48,7 +48,7 @@ $(STAMP): pyproject.toml | system
 	$(PIP) install -q torch==$(TORCH_VERSION)
 	@$(PIP) install -q pybind11 && $(PIP) install -q --no-build-isolation pyamgcl \
 	  || echo "[setup] pyamgcl (AMGCL) did not build: the benchmark names it and skips its rows"
-	$(PIP) install -q -e '.[bench,dev]'
+	$(PIP) install -q -e '.[bench,dev,learned]'
 	@touch $(STAMP)
 	@echo "[setup] done"
 

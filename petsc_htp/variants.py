@@ -35,8 +35,8 @@ def require_torch(what: str):
     """Import torch, or raise ModuleNotFoundError saying that ``what`` needs the ``learned`` extra."""
     try:
         import torch
-    except ModuleNotFoundError as err:
-        raise ModuleNotFoundError(f"{what} runs torch, which is not installed: {TORCH_EXTRA}") from err
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError(f"{what} runs torch, which is not installed: {TORCH_EXTRA}") from None
     return torch
 
 

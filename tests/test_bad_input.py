@@ -50,20 +50,36 @@ pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"
 
 
-
-@pytest.fixture(scope="module", params=[1, 2])
-def outcomes(request, tmp_path_factory):
-    """{(case, rank): outcome} of one run of every case on ``n`` ranks, and ``n``."""
-    n = request.param
-    proc = subprocess.run([MPIEXEC, "-n", str(n), sys.executable, str(HERE / "bad_input_cases.py"),
-                           str(tmp_path_factory.mktemp(f"bad{n}"))],
-                          capture_output=True, text=True, timeout=TIMEOUT)
+def run_cases(python, script, n, workdir, cwd=None) -> dict:
+    """{(case, rank): outcome} of one run of every case of ``script`` by ``python`` on ``n`` ranks."""
+    proc = subprocess.run([MPIEXEC, "-n", str(n), str(python), str(script), str(workdir)],
+                          capture_output=True, text=True, timeout=TIMEOUT, cwd=cwd)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     # ranks print whole lines, but two ranks' lines may meet without a newline between them
     found = re.findall(r"CASE (\w+) rank (\d+): (.*?)\s*(?=CASE |\Z)", proc.stdout, re.S)
     got = {(case, int(rank)): text for case, rank, text in found}
     assert len(got) == len(found), "a case printed twice"
-    return got, n
+    return got
+
+
+def check_outcome(got, n, case, expected=EXPECTED):
+    """The case ended as ``expected`` says on every one of the ``n`` ranks, alike."""
+    want = expected[case] if isinstance(expected[case], str) else expected[case][n]
+    texts = [got[(case, r)] for r in range(n)]
+    for r, text in enumerate(texts):
+        assert re.fullmatch(want, text), (case, r, text)
+    assert len(set(texts)) == 1, texts                    # every rank tells the same story
+    if want == CONVERGED:
+        relres, analyses, numeric = re.fullmatch(CONVERGED, texts[0]).groups()
+        assert float(relres) <= 1.01e-8                   # the true residual, null space removed
+        assert (analyses, numeric) == SETUPS.get(case, ("1", "1"))
+
+
+@pytest.fixture(scope="module", params=[1, 2])
+def outcomes(request, tmp_path_factory):
+    """{(case, rank): outcome} of one run of every case on ``n`` ranks, and ``n``."""
+    n = request.param
+    return run_cases(sys.executable, HERE / "bad_input_cases.py", n, tmp_path_factory.mktemp(f"bad{n}")), n
 
 
 def test_at_least_15_cases_each_on_every_rank(outcomes):
@@ -75,12 +91,4 @@ def test_at_least_15_cases_each_on_every_rank(outcomes):
 @pytest.mark.parametrize("case", sorted(EXPECTED))
 def test_outcome(outcomes, case):
     got, n = outcomes
-    want = EXPECTED[case] if isinstance(EXPECTED[case], str) else EXPECTED[case][n]
-    texts = [got[(case, r)] for r in range(n)]
-    for r, text in enumerate(texts):
-        assert re.fullmatch(want, text), (case, r, text)
-    assert len(set(texts)) == 1, texts                    # every rank tells the same story
-    if want == CONVERGED:
-        relres, analyses, numeric = re.fullmatch(CONVERGED, texts[0]).groups()
-        assert float(relres) <= 1.01e-8                   # the true residual, null space removed
-        assert (analyses, numeric) == SETUPS.get(case, ("1", "1"))
+    check_outcome(got, n, case)

@@ -1,7 +1,7 @@
 """One solve in a fresh process: ``python -m petsc_htp.bench.fresh MATRIX.npz METHOD [--threads T]``.
 
 Loads A (and b) from the ``.npz`` that :func:`save` wrote, imports what the method needs, solves once as the
-benchmark does (:func:`petsc_htp.bench.runner._solve`) and prints one JSON row on its last line with ``import_ms``
+benchmark does (:func:`petsc_htp.bench.runner.solve_method`) and prints one JSON row on its last line with ``import_ms``
 (petsc4py and the package, before any solve), ``baseline_mb`` (resident memory before the solve) and
 ``peak_rss_mb`` (the peak from then on: Linux lets a process start its peak over): the first call a user's
 program pays, and the memory the solve itself takes.

@@ -27,6 +27,7 @@ from scipy import ndimage, optimize
 
 from ..morton import morton_code
 from ..scenes.generator import assemble_operator
+from .advection import departure, face_offset, sample
 
 GRAVITY = 9.81
 FRAME_DT = 1.0 / 60.0
@@ -39,30 +40,6 @@ def _heaviside(x, eps):
     """Smoothed Heaviside: 0 below ``-eps``, 1 above ``eps``."""
     t = np.clip(x / eps, -1.0, 1.0)
     return 0.5 * (1.0 + t + np.sin(np.pi * t) / np.pi)
-
-
-def _sample(field, pts, offset, h):
-    """Multilinear interpolation of ``field``, whose entry at physical index ``(i, j[, k])`` sits at
-    ``((i + offset[0]) h, (j + offset[1]) h[, ...])``, at the points ``pts`` (x, y[, z] arrays).
-
-    Interpolates along x innermost, then y, then z."""
-    d = len(pts)
-    base, frac = [], []
-    for a in range(d):
-        size = field.shape[d - 1 - a]
-        f = np.clip(pts[a] / h - offset[a], 0.0, size - 1)
-        i = np.minimum(f.astype(np.int64), size - 2)
-        base.append(i)
-        frac.append(f - i)
-
-    def lerp(a, fixed):
-        if a < 0:
-            return field[tuple(fixed[b] for b in reversed(range(d)))]
-        lo = lerp(a - 1, {**fixed, a: base[a]})
-        hi = lerp(a - 1, {**fixed, a: base[a] + 1})
-        return (1 - frac[a]) * lo + frac[a] * hi
-
-    return lerp(d - 1, {})
 
 
 def _shifted(p, axis, step):
@@ -244,26 +221,6 @@ class Flow:
         volume = self.h ** self.dim
         return self.ratio * theta.sum() * volume, (1.0 - theta).sum() * volume
 
-    # ---------------------------------------------------------- advection
-
-    def _offset(self, a):
-        """Where component ``a`` of the velocity sits in its cell: 0 along ``a``, 1/2 across."""
-        return [0.0 if b == a else 0.5 for b in range(self.dim)]
-
-    def _velocity(self, pts):
-        """Velocity components interpolated at points."""
-        return [_sample(self.vel[a], pts, self._offset(a), self.h) for a in range(self.dim)]
-
-    def _departure(self, pts, substeps):
-        """Departure points of a backward trace over ``dt`` in ``substeps`` RK2 steps."""
-        step = self.dt / substeps
-        size = [s * self.h for s in self.shape]
-        for _ in range(substeps):
-            vel = self._velocity(pts)
-            vel = self._velocity([p - 0.5 * step * v for p, v in zip(pts, vel)])
-            pts = [np.clip(p - step * v, 0.0, s) for p, v, s in zip(pts, vel, size)]
-        return pts
-
     def advance(self):
         """Advect velocity and level set by one frame, then add gravity (along the last axis).
 
@@ -275,16 +232,17 @@ class Flow:
         self.substeps = max(1, math.ceil(speed * self.dt / (self.cfl * self.h)))
         h, d = self.h, self.dim
         moved = []
+        size = [s * h for s in self.shape]
         for a in range(d):
             at = np.nonzero(self.open[a])
             pts = [(at[d - 1 - b] + (0.0 if b == a else 0.5)) * h for b in range(d)]
-            moved.append((at, self._departure(pts, self.substeps)))
+            moved.append((at, departure(self.vel, pts, self.dt, self.substeps, h, size)))
         cells = np.nonzero(self.fluid)
-        c_from = self._departure([(cells[d - 1 - b] + 0.5) * h for b in range(d)], self.substeps)
+        c_from = departure(self.vel, [(cells[d - 1 - b] + 0.5) * h for b in range(d)], self.dt, self.substeps, h, size)
         vel, phi = [v.copy() for v in self.vel], self.phi.copy()
         for a, (at, pts) in enumerate(moved):
-            vel[a][at] = _sample(self.vel[a], pts, self._offset(a), h) - (GRAVITY * self.dt if a == d - 1 else 0.0)
-        phi[cells] = _sample(self.phi, c_from, [0.5] * d, h)
+            vel[a][at] = sample(self.vel[a], pts, face_offset(a, d), h) - (GRAVITY * self.dt if a == d - 1 else 0.0)
+        phi[cells] = sample(self.phi, c_from, [0.5] * d, h)
         phi = _redistance(phi[self._nearest], h, REDISTANCE_STEPS)
         self.vel = vel
         self.phi = self._conserve_volume(phi[self._nearest])
@@ -336,7 +294,7 @@ class Flow:
         float
             max |div u| after the projection.
         """
-        pressure, rho = self.pressure_image(p), 1.0 + (self.ratio - 1.0) * self.theta()
+        pressure, rho = image(self, p), 1.0 + (self.ratio - 1.0) * self.theta()
         scale = self.dt / self.h
         for a in range(self.dim):
             axis = self.dim - 1 - a
@@ -347,21 +305,13 @@ class Flow:
             self.vel[a][inner] -= np.where(self.open[a][inner], grad, 0.0)
         return self.max_divergence()
 
-    # ------------------------------------------------------------- images
 
-    def _image(self, values):
-        """Array-shaped image of Morton-ordered values, NaN in solid cells."""
-        values = np.asarray(values, dtype=np.float64)
-        if values.shape != (self.n,):
-            raise ValueError(f"values must have shape ({self.n},), got {values.shape}")
-        image = np.full(self.fluid.shape, np.nan)
-        image[self.at] = values
-        return image
-
-    def density_image(self):
-        """Density, NaN in solid cells (row 0 at the bottom); a (nz, ny, nx) volume in 3-D."""
-        return self._image(self.density())
-
-    def pressure_image(self, p):
-        """Image of a Morton-ordered pressure, NaN in solid cells."""
-        return self._image(p)
+def image(flow, values):
+    """Array-shaped image of a :class:`Flow`'s Morton-ordered ``values`` (density, pressure), NaN in solid cells
+    (row 0 at the bottom; a (nz, ny, nx) volume in 3-D)."""
+    values = np.asarray(values, dtype=np.float64)
+    if values.shape != (flow.n,):
+        raise ValueError(f"values must have shape ({flow.n},), got {values.shape}")
+    out = np.full(flow.fluid.shape, np.nan)
+    out[flow.at] = values
+    return out

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_open
+from .flow import image
 
 FPS_LINES = ((60, "60 fps"), (24, "24 fps"))
 
@@ -88,8 +89,8 @@ def frame_images(flow, p):
     """The two panels of a GIF frame: density and pressure (2-D), or :func:`heavy_view` and the pressure's
     central x-z slice (3-D)."""
     if flow.dim == 2:
-        return flow.density_image(), flow.pressure_image(p)
-    return heavy_view(flow.theta(), ~flow.fluid), flow.pressure_image(p)[:, flow.fluid.shape[1] // 2, :]
+        return image(flow, flow.density()), image(flow, p)
+    return heavy_view(flow.theta(), ~flow.fluid), image(flow, p)[:, flow.fluid.shape[1] // 2, :]
 
 
 def write_gif(densities, pressures, path, fps=20):
