@@ -62,6 +62,19 @@ def _redistance(phi, h, steps):
     return phi
 
 
+def _heavy_volume(phi_fluid, eps):
+    """Heavy volume in cells: ``sum H(-phi)`` over the fluid values ``phi_fluid``."""
+    return float(_heaviside(-phi_fluid, eps).sum())
+
+
+def _conserve_volume(phi, fluid, volume, eps, h):
+    """``phi`` plus the constant that brings the heavy volume over the ``fluid`` cells back to ``volume``."""
+    fluid_phi = phi[fluid]
+    lo, hi = -fluid_phi.max() - eps, -fluid_phi.min() + eps
+    shift = optimize.brentq(lambda c: _heavy_volume(fluid_phi + c, eps) - volume, lo, hi, xtol=1e-15 * h)
+    return phi + shift
+
+
 def scene(nx, ny, seed=0, nz=None):
     """Solid mask and initial level set of the splash scene.
 
@@ -175,7 +188,7 @@ class Flow:
             self.vel.append(np.zeros(faces))
         self._nearest = tuple(ndimage.distance_transform_edt(solid, return_indices=True)[1])
         self.phi = phi[self._nearest]
-        self.heavy_volume = self._heavy_volume(self.phi[self.fluid])
+        self.heavy_volume = _heavy_volume(self.phi[self.fluid], self.eps)
         self.substeps = 0
 
     @property
@@ -194,18 +207,6 @@ class Flow:
         return self.idx[1]
 
     # ------------------------------------------------------------- phase
-
-    def _heavy_volume(self, phi_fluid):
-        """Heavy volume in cells: ``sum H(-phi)`` over the fluid."""
-        return float(_heaviside(-phi_fluid, self.eps).sum())
-
-    def _conserve_volume(self, phi):
-        """``phi`` plus the constant that restores the initial heavy volume."""
-        fluid_phi = phi[self.fluid]
-        lo, hi = -fluid_phi.max() - self.eps, -fluid_phi.min() + self.eps
-        shift = optimize.brentq(lambda c: self._heavy_volume(fluid_phi + c) - self.heavy_volume,
-                                lo, hi, xtol=1e-15 * self.h)
-        return phi + shift
 
     def theta(self):
         """Heavy fraction ``H(-phi)`` of every cell (array shape)."""
@@ -245,7 +246,7 @@ class Flow:
         phi[cells] = sample(self.phi, c_from, [0.5] * d, h)
         phi = _redistance(phi[self._nearest], h, REDISTANCE_STEPS)
         self.vel = vel
-        self.phi = self._conserve_volume(phi[self._nearest])
+        self.phi = _conserve_volume(phi[self._nearest], self.fluid, self.heavy_volume, self.eps, h)
 
     # --------------------------------------------------------- projection
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from pyamg import amg_core
 
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
 PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-D and 3-D Poisson-type graphs
@@ -36,6 +35,8 @@ def decoupled_rows(A) -> np.ndarray:
 
 def strength(A, theta=THETA) -> sp.csr_matrix:
     """The strong couplings of ``A`` (diagonal kept): PyAMG's symmetric strength of connection."""
+    from pyamg import amg_core          # here, not at import: a small matrix's factor never needs PyAMG (38 ms)
+
     n = A.shape[0]
     Sp, Sj, Sx = np.empty_like(A.indptr), np.empty_like(A.indices), np.empty_like(A.data)
     amg_core.symmetric_strength_of_connection(n, theta, A.indptr, A.indices, A.data, Sp, Sj, Sx)
@@ -45,6 +46,8 @@ def strength(A, theta=THETA) -> sp.csr_matrix:
 
 def standard(S) -> tuple:
     """(count, aggregate of each row, -1 where a row has no strong neighbour) of PyAMG's standard aggregation."""
+    from pyamg import amg_core
+
     n = S.shape[0]
     agg, roots = np.empty(n, dtype=S.indices.dtype), np.empty(n, dtype=S.indices.dtype)
     count = amg_core.standard_aggregation(n, S.indptr, S.indices, agg, roots)
