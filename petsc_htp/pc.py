@@ -40,20 +40,10 @@ from .pcoptions import HTPOptions
 from .pcview import view
 from .validation import check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, attach, attached, local_rows
+from .threads import set_threads
 from .variants import variant_class
 
 __all__ = ["HTPPC", "attach"]
-
-
-def set_torch_threads(n: int) -> int | None:
-    """Set torch's process-wide CPU thread count to ``n`` where torch is loaded; return the previous count when it
-    changed (torch is never imported here: the default variant runs without it)."""
-    torch = sys.modules.get("torch")
-    if torch is None or n == torch.get_num_threads():
-        return None
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    return before
 
 
 class HTPPC:
@@ -120,8 +110,8 @@ class HTPPC:
             self._ev_setup.end()
 
     def _threads(self, opts):
-        """torch's threads as ``-htp_threads`` says, where torch runs."""
-        changed = set_torch_threads(opts.threads)
+        """This process's BLAS, OpenMP and torch threads as ``-htp_threads`` says (:mod:`petsc_htp.threads`)."""
+        changed = set_threads(opts.threads)
         if changed is not None:
             self.threads_note = f"set process-wide to {opts.threads} by -{self.prefix}htp_threads (was {changed})"
 

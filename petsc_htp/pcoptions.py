@@ -48,7 +48,8 @@ HELP = {
                   "graph ICC(0) up to 8000; n >= 0: sparse Cholesky up to n rows; 0: never)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
-    "threads": "torch CPU threads of this process (set process-wide at setup; -ksp_view says so)",
+    "threads": "BLAS, OpenMP and torch threads of this process (set process-wide at setup; -ksp_view says so; 1 "
+               "suits one MPI rank per core)",
     "fallback": "none or jacobi: apply D^-1 when M is non-finite or found indefinite at setup",
     "probe": "random Rayleigh-quotient probes of M at setup (0: skip the check; -1: 4 for paper, 0 for twolevel, "
              "SPD by construction, whose factorisations are checked instead)",

@@ -18,9 +18,8 @@ def lines(ctx) -> list:
     if ctx.setup is None:
         return out
     out += ["  " + line for line in ctx.setup.describe()]
-    torch = sys.modules.get("torch")
-    threads = "" if torch is None else f"; torch threads: {torch.get_num_threads()}" + (
-        f" ({ctx.threads_note})" if ctx.threads_note else "")
+    which = "BLAS, OpenMP" + (" and torch" if "torch" in sys.modules else "")
+    threads = f"; {which} threads: {ctx.opts.threads}" + (f" ({ctx.threads_note})" if ctx.threads_note else "")
     out.append(f"  setups: {ctx.analysis_count} analyses (pattern), {ctx.numeric_count} numeric (values)" + threads)
     k = opts.probes
     probe = f"{k} Rayleigh probe{'s' if k > 1 else ''}" if k else "no Rayleigh probe"

@@ -38,6 +38,9 @@ def main():
     PETSc.Sys.Print(f"inner: {inner}; leaf {ctx.getLeafPC().getOptionsPrefix()}; "
                     f"coarse {ctx.getCoarsePC().getOptionsPrefix()}")
     PETSc.Sys.Print(f"torch loaded: {'torch' in sys.modules}")
+    from petsc_htp.threads import thread_pools
+
+    PETSc.Sys.Print(f"BLAS threads: {sorted({getter() for _, getter in thread_pools()})}")
     for obj in (ksp, mat, rhs, x):
         obj.destroy()
 

@@ -35,6 +35,7 @@ def test_ksp_view_shows_the_inner_solvers_and_log_view_an_event_per_phase(ranks)
     assert len(events) >= 6 and {"HTPSetup", "HTPApply", "HTPLeafSolve", "HTPCoarseSolve"} <= events, events
     assert "inner: {'leaf solver': 'htp_leaf_ cholesky', 'coarse solver': 'htp_cs_ " in out
     assert "leaf htp_leaf_; coarse htp_cs_" in out and "torch loaded: False" in out
+    assert "BLAS threads: [1]" in out and "BLAS, OpenMP threads: 1" in out     # -htp_threads 1, one per rank
 
 
 @pytest.mark.mpi

@@ -277,7 +277,7 @@ def test_threads_option_sets_torch_and_says_so(frame, tiny_ckpt, options):
         ksp = make_ksp(A, options(**htp_opts(tiny_ckpt)))          # -htp_threads 1
         reason, _, _ = solve(ksp, A, frame.b)
         assert reason > 0 and torch.get_num_threads() == 1
-        assert "torch threads: 1 (set process-wide to 1 by -t" in view_text(ksp)
+        assert "and torch threads: 1 (set process-wide to 1 by -t" in view_text(ksp)
     finally:
         torch.set_num_threads(before)
 

@@ -19,15 +19,15 @@ class CoarseSolve:
         self.g = self.c = self.c2 = None
 
     def setup(self, ops):
-        """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; a sequential
-        LU takes it as BAIJ where W's columns come in equal blocks)."""
+        """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; an LU, also
+        PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
             defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)
-            if st.col_block > 1 and self.pc.getType() == "lu":
+            if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2 = (E.createVecLeft() for _ in range(3))
         with inner.scoped(self.prefix, self.rest):      # PCREDUNDANT's inner solver reads its defaults now

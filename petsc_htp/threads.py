@@ -1,0 +1,54 @@
+"""The threads of this process's BLAS, OpenMP and torch, which ``-htp_threads`` sets (1 by default).
+
+An MPI rank that leaves OpenBLAS at its default uses every core's worth of threads, and two ranks on two cores
+then contend for them: PETSc's vector and triangular-solve kernels (BLAS) ran three to four times slower on
+2 ranks of a bare 512^2 DMDA matrix until the threads were set to 1 (one thread per rank is what PETSc assumes).
+The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), once per process;
+elsewhere only torch's threads are set.
+"""
+from __future__ import annotations
+
+import ctypes
+import sys
+
+SETTERS = (("openblas_set_num_threads", "openblas_get_num_threads"),
+           ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
+           ("omp_set_num_threads", "omp_get_max_threads"))
+_FOUND = None
+
+
+def thread_pools() -> list:
+    """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process."""
+    global _FOUND
+    if _FOUND is None:
+        _FOUND = []
+        try:
+            with open("/proc/self/maps") as fh:
+                paths = sorted({line.split()[-1] for line in fh if "blas" in line or "gomp" in line})
+        except OSError:
+            paths = []
+        for path in paths:
+            try:
+                lib = ctypes.CDLL(path)
+            except OSError:
+                continue
+            for setter, getter in SETTERS:
+                if hasattr(lib, setter) and hasattr(lib, getter):
+                    _FOUND.append((getattr(lib, setter), getattr(lib, getter)))
+    return _FOUND
+
+
+def set_threads(n: int) -> int | None:
+    """Set the BLAS, OpenMP and (where loaded) torch threads of this process to ``n``; returns the previous count
+    where one changed, else None. torch is never imported here."""
+    before = None
+    for setter, getter in thread_pools():
+        now = getter()
+        if now != n:
+            setter(n)
+            before = before or now
+    torch = sys.modules.get("torch")
+    if torch is not None and torch.get_num_threads() != n:
+        before = before or torch.get_num_threads()
+        torch.set_num_threads(n)
+    return before
