@@ -1,6 +1,6 @@
 """The threads of this process's BLAS, OpenMP and torch, which ``-htp_threads`` sets (1 by default).
 
-An MPI rank that leaves OpenBLAS at its default uses every core's worth of threads, and two ranks on two cores
+An MPI rank that leaves OpenBLAS at its default uses a thread per core, and two ranks on two cores
 then contend for them: PETSc's vector and triangular-solve kernels (BLAS) ran three to four times slower on
 2 ranks of a bare 512^2 DMDA matrix until the threads were set to 1 (one thread per rank is what PETSc assumes).
 The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), once per process;
