@@ -15,7 +15,7 @@ FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
-                  "coarse_tol", "overlap", "coarse_solver", "direct_max")
+                  "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",

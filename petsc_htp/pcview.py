@@ -4,16 +4,16 @@ from __future__ import annotations
 import sys
 
 from .twolevel.inner import view as view_inner
-from .variants import variant_class
 
 
 def lines(ctx) -> list:
     """The lines of an :class:`~petsc_htp.pc.HTPPC` context ``ctx``: variant and title, model, the setup's
     description, setups, torch threads where torch runs, checks and fallback."""
     opts = ctx.opts
-    title = variant_class(opts.variant).title if ctx.variant is None else ctx.variant.title
-    out = [f"HTPPC, variant {opts.variant}: {title}" + ("" if ctx.setup is not None else "; not set up yet")]
-    if ctx.variant is not None and ctx.variant.model:
+    if ctx.variant is None:                    # nothing imported for a view before the setup
+        return [f"HTPPC, variant {opts.variant}; not set up yet"]
+    out = [f"HTPPC, variant {opts.variant}: {ctx.variant.title}" + ("" if ctx.setup is not None else "; not set up yet")]
+    if ctx.variant.model:
         out.append(f"  model: {ctx.variant.model}")
     if ctx.setup is None:
         return out

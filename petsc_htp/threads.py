@@ -3,7 +3,7 @@
 An MPI rank that leaves OpenBLAS at its default uses a thread per core, and two ranks on two cores
 then contend for them: PETSc's vector and triangular-solve kernels (BLAS) ran three to four times slower on
 2 ranks of a bare 512^2 DMDA matrix until the threads were set to 1 (one thread per rank is what PETSc assumes).
-The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), once per process;
+The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), each library once;
 elsewhere only torch's threads are set.
 """
 from __future__ import annotations
@@ -14,28 +14,26 @@ import sys
 SETTERS = (("openblas_set_num_threads", "openblas_get_num_threads"),
            ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
            ("omp_set_num_threads", "omp_get_max_threads"))
-_FOUND = None
+_FOUND = {}          # library path -> its (setter, getter) pairs
 
 
 def thread_pools() -> list:
-    """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process."""
-    global _FOUND
-    if _FOUND is None:
-        _FOUND = []
-        try:
-            with open("/proc/self/maps") as fh:
-                paths = sorted({line.split()[-1] for line in fh if "blas" in line or "gomp" in line})
-        except OSError:
-            paths = []
-        for path in paths:
+    """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process (a library
+    loaded since the last call, such as torch's OpenMP, is found too)."""
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = sorted({line.split()[-1] for line in fh if "blas" in line or "gomp" in line})
+    except OSError:
+        paths = []
+    for path in paths:
+        if path not in _FOUND:
             try:
                 lib = ctypes.CDLL(path)
             except OSError:
-                continue
-            for setter, getter in SETTERS:
-                if hasattr(lib, setter) and hasattr(lib, getter):
-                    _FOUND.append((getattr(lib, setter), getattr(lib, getter)))
-    return _FOUND
+                lib = None
+            _FOUND[path] = [(getattr(lib, s), getattr(lib, g)) for s, g in SETTERS
+                            if lib is not None and hasattr(lib, s) and hasattr(lib, g)]
+    return [pair for path in paths for pair in _FOUND[path]]
 
 
 def set_threads(n: int) -> int | None:

@@ -118,9 +118,8 @@ class TwoLevel:
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
-        every = self.opts.coarse_space_every          # > 1 only on a TwoLevelPC (DirectPC takes plain options)
+        every = self.opts.coarse_space_every          # > 1 only on a TwoLevelPC (a pattern option: a DirectPC has 1)
         keep = previous is not None and every > 1 and previous.space.age + 1 < every
-        analysis.configure(self.config())
         analysis.numeric(A, density, keep_space=keep)
         return analysis
 

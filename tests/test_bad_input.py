@@ -28,6 +28,8 @@ EXPECTED = {
     "indefinite": {1: r"error: HTPPC needs a symmetric positive \(semi\)definite matrix, but its Cholesky factor has "
                       r"\d+ negative pivot\(s\) in 1024 rows: the matrix is indefinite",      # one factor: its inertia
                    2: r"diverged DIVERGED_INDEFINITE_(MAT|PC)"},
+    "indefinite_rich": r"diverged DIVERGED_INDEFINITE_(MAT|PC)",          # ICC(0) on one rank: CG names it
+    "decoupled_rank": CONVERGED,
     "nonsquare": r"error: HTPPC needs a square matrix, got 1024 x 1025 \(non-square\)",
     "empty_matrix": r"error: HTPPC got an empty matrix \(1024 x 1024 with no nonzeros\)",
     "rank_without_rows": {1: CONVERGED,
@@ -50,9 +52,10 @@ pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"
 
 
-def run_cases(python, script, n, workdir, cwd=None) -> dict:
-    """{(case, rank): outcome} of one run of every case of ``script`` by ``python`` on ``n`` ranks."""
-    proc = subprocess.run([MPIEXEC, "-n", str(n), str(python), str(script), str(workdir)],
+def run_cases(python, script, n, workdir, cwd=None, cases=()) -> dict:
+    """{(case, rank): outcome} of one run of ``cases`` (default: every case) of ``script`` by ``python`` on ``n``
+    ranks."""
+    proc = subprocess.run([MPIEXEC, "-n", str(n), str(python), str(script), str(workdir), *cases],
                           capture_output=True, text=True, timeout=TIMEOUT, cwd=cwd)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     # ranks print whole lines, but two ranks' lines may meet without a newline between them
@@ -92,3 +95,10 @@ def test_at_least_15_cases_each_on_every_rank(outcomes):
 def test_outcome(outcomes, case):
     got, n = outcomes
     check_outcome(got, n, case)
+
+
+def test_rank_without_couplings_to_others(tmp_path):
+    """3 ranks, the last one's rows decoupled from the rest: the analysis's collectives run on every rank (a
+    rank that skipped the ghost scatter used to hang the others)."""
+    got = run_cases(sys.executable, HERE / "bad_input_cases.py", 3, tmp_path, cases=["decoupled_rank"])
+    check_outcome(got, 3, "decoupled_rank", {"decoupled_rank": CONVERGED})

@@ -261,6 +261,26 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     assert ctx.setup.space.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
 
 
+def test_two_level_options_set_after_a_whole_matrix_factor_make_a_new_analysis(frames):
+    """A small matrix gets one factor; -htp_coarse_space_every or -htp_form set later are
+    two-level options, so the next setup analyses anew and the two-level method runs."""
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    reason, _, _, ksp = solve(mat, frame.b, htp_direct_max=None)
+    ctx = ksp.getPC().getPythonContext()
+    assert reason > 0 and type(ctx.setup).__name__ == "DirectPC"
+    prefix = ksp.getOptionsPrefix()
+    for key, value in {"htp_coarse_space_every": "3", "htp_form": "balanced"}.items():
+        PETSc.Options(prefix).setValue(key, value)            # read at the next setup, by the same context
+        mat.scale(2.0)                                  # new values: the PC sets up again
+        rhs, x = mat.createVecs()
+        rhs.setArray(frame.b)
+        x.set(0)
+        ksp.solve(rhs, x)
+        assert ksp.getConvergedReason() > 0 and type(ctx.setup).__name__ == "TwoLevelPC"
+    assert ctx.analysis_count == 3 and ctx.setup.forms.form() == "balanced"
+
+
 @pytest.mark.slow
 def test_min_rayleigh_positive_on_every_stability_case():
     """M is SPD by construction: positive Rayleigh quotients on every stress case, in PETSc and in torch."""

@@ -1,2 +1,3 @@
 """What training needs besides the networks: losses (:mod:`.loss`), checkpoint files (:mod:`.checkpoint`) and a
-plain NumPy PCG for training-time evaluation (:mod:`.pcg`). None of it is loaded by HTPPC's default."""
+plain NumPy PCG for training-time evaluation (:mod:`.pcg`). HTPPC's default loads only :mod:`.checkpoint`
+(its option checks, no torch)."""

@@ -12,7 +12,7 @@ than converged ones.
 
 Rows are in the leaves' order (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`); the batched per-leaf work
 runs on the padded (K, Lmax, q) layout, in numpy (the torch back-end converts). ``solve`` applies S^-1 to an
-(n, q) array, so the factor can be PETSc's (:mod:`petsc_htp.twolevel.composed`) or any other.
+(n, q) array, so the factor can be PETSc's (:mod:`petsc_htp.twolevel.space`) or any other.
 """
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ def _orthonormal(X, scale) -> np.ndarray:
     tiny = np.finfo(np.float64).tiny
     floor = np.maximum(np.square(DEPENDENT * scale), tiny)[:, None]
     for _ in range(2):
-        w, V = np.linalg.eigh(X.mT @ X)
+        w, V = np.linalg.eigh(X.swapaxes(-1, -2) @ X)
         keep = w > floor
         X = X @ (V * np.where(keep, 1.0 / np.sqrt(np.maximum(w, tiny)), 0.0)[:, None, :])
         floor = np.full_like(floor, 0.25)              # the second pass: kept directions have unit length
@@ -108,7 +108,7 @@ def _size(X) -> np.ndarray:
 def without(X, C):
     """X (K, Lmax, q) minus its components along the orthonormal columns C (K, Lmax, c) of each leaf (numpy
     arrays or torch tensors)."""
-    return X - C @ (C.mT @ X)
+    return X - C @ (C.swapaxes(-1, -2) @ X)
 
 
 def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=None, tol=0.0) -> tuple:

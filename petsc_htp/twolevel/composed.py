@@ -84,11 +84,6 @@ class TwoLevelPC:
             self.forms = Forms(mat, self.ops, self.leafsolver, self.coarse, st.cfg.form)
         self.analysis_ms = times["analysis"]
 
-    def configure(self, cfg):
-        """Options that need no new analysis (the form) from ``cfg``."""
-        self.cfg = self.st.cfg = self.st.resolved(cfg)
-        self.forms.configured = self.cfg.form
-
     def moved(self, rows) -> bool:
         """Whether new values ``rows`` call for new leaves (:meth:`.structure.Structure.moved`)."""
         return self.st.moved(rows)

@@ -6,8 +6,10 @@ less than building leaves, a coarse space and their products (sizing's docstring
 singular matrix (an
 attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal entry of
 each null component is raised by its own magnitude, so the factor exists and is exact on vectors orthogonal to
-the component's constant, which is what a KSP with the null space attached hands over. The factor's inertia
-checks that the matrix is positive (semi)definite: negative pivots are an error that says so.
+the component's constant, which is what a KSP with the null space attached hands over. The Cholesky factor's
+inertia checks that the matrix is positive (semi)definite: negative pivots are an error that says so. ICC(0)'s
+shift keeps its pivots positive, so there an indefinite matrix is named by the KSP (CG stops with
+DIVERGED_INDEFINITE_MAT or _PC), as on several ranks.
 """
 from __future__ import annotations
 
@@ -51,9 +53,6 @@ class DirectPC:
     def moved(rows) -> bool:
         """Nothing here depends on the values' shape: never a new analysis for new values."""
         return False
-
-    def configure(self, cfg):
-        """Nothing here follows the options that need no new analysis."""
 
     def inner_pcs(self) -> dict:
         """The factor."""

@@ -41,13 +41,17 @@ class Forms:
 
     def _leaf(self, x, v):
         self._leaf_ev.begin()
-        self.B.apply(x, v)
-        self._leaf_ev.end()
+        try:
+            self.B.apply(x, v)
+        finally:
+            self._leaf_ev.end()
 
     def _coarse(self, g, c):
         self._coarse_ev.begin()
-        self.coarse.apply(g, c)
-        self._coarse_ev.end()
+        try:
+            self.coarse.apply(g, c)
+        finally:
+            self._coarse_ev.end()
 
     def mult(self, x, y):
         """y = M x in the form in use."""

@@ -5,7 +5,8 @@ A default is a PETSc option name and value under the solver's prefix (:mod:`pets
 them so). The ones PETSc's Python API can set are set through it (PC type, factor ordering and shift, a PCKSP's
 inner KSP type, tolerance and PC); the few it cannot (GAMG's aggressive coarsening, PCREDUNDANT's inner
 solver, which exists only once set up) sit in the options database for the ``setFromOptions`` or set-up that
-reads them, and are taken out again: a setup leaves the database as it found it.
+reads them, and are taken out again: a setup leaves the database as it found it. A user's own ``pc_type`` replaces
+the type and with it the defaults set for it (that type gets PETSc's own, as any PC would).
 """
 from __future__ import annotations
 
@@ -61,11 +62,15 @@ def configured_pc(comm, mat, prefix, defaults) -> tuple:
     """A PC on ``mat`` with ``defaults`` (:func:`through_api`) and, winning over them, the options under
     ``prefix``. Returns (the PC, the defaults its set-up still has to find in the options database)."""
     pc = PETSc.PC().create(comm)
-    pc.setOptionsPrefix(prefix)
-    pc.setOperators(mat, mat)
-    rest = through_api(pc, defaults)
-    with scoped(prefix, rest):
-        pc.setFromOptions()
+    try:
+        pc.setOptionsPrefix(prefix)
+        pc.setOperators(mat, mat)
+        rest = through_api(pc, defaults)
+        with scoped(prefix, rest):
+            pc.setFromOptions()
+    except Exception:
+        pc.destroy()
+        raise
     return pc, rest
 
 

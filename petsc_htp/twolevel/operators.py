@@ -15,10 +15,14 @@ from .inner import scoped
 def coo_aij(comm, rows, cols, shape, local, col_block=1) -> PETSc.Mat:
     """An AIJ on ``comm`` with the COO pattern (global ``rows``, ``cols``); values come by ``setValuesCOO``."""
     mat = PETSc.Mat().create(comm=comm)
-    mat.setSizes(((local[0], shape[0]), (local[1], shape[1])))
-    mat.setBlockSizes(1, col_block)
-    mat.setType(PETSc.Mat.Type.AIJ)
-    mat.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+    try:
+        mat.setSizes(((local[0], shape[0]), (local[1], shape[1])))
+        mat.setBlockSizes(1, col_block)
+        mat.setType(PETSc.Mat.Type.AIJ)
+        mat.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+    except Exception:
+        mat.destroy()
+        raise
     return mat
 
 
@@ -32,9 +36,13 @@ class Operators:
         self.mat, self.st = mat, st
         self.o_values = np.zeros(lay.o_src.size)
         self.o_perm_rows = lay.iperm[lay.o_rows]                     # O's rows in the leaves' order
+        self.W = self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
         self.O = coo_aij(comm, lay.o_rows + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
-        self.W = coo_aij(comm, st.w_rows, st.w_cols, (N, st.m), (n, int(st.ncols.sum())), st.col_block)
-        self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
+        try:
+            self.W = coo_aij(comm, st.w_rows, st.w_cols, (N, st.m), (n, int(st.ncols.sum())), st.col_block)
+        except Exception:
+            self.destroy()
+            raise
 
     def couplings(self, data):
         """O's values from A's ``data`` (the analysed pattern)."""

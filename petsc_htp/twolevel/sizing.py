@@ -61,7 +61,9 @@ def whole_factor(dim: int, n: int, per_row: float, bare: bool):
     are rich or the graph is 3-D (its fill stays that of A while the exact factor's grows with the couplings per
     row) up to :data:`WHOLE_ICC_MAX` rows, else a sparse Cholesky factor up to :data:`DIRECT_MAX`; a matrix with
     coordinates attached (the project's own frames) the Cholesky factor up to :data:`DIRECT_MAX` (see the module
-    docstring)."""
+    docstring). Sparse rows up to ``DIRECT_MAX[3]`` get the Cholesky factor in any dimension."""
+    if n <= DIRECT_MAX[3] and per_row <= RICH_ROW:
+        return "cholesky"
     if bare and (per_row > RICH_ROW or dim == 3):
         return "icc" if n <= WHOLE_ICC_MAX[dim] else None
     return "cholesky" if n <= DIRECT_MAX[dim] else None

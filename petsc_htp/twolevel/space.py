@@ -45,7 +45,11 @@ class CoarseSpace:
         if st.lead:
             self.s_values = np.zeros(lay.d_src.size)
             self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, lay.n)
-            self.S_factor = make_pc(self.S)
+            try:
+                self.S_factor = make_pc(self.S)
+            except Exception:
+                self.destroy()
+                raise
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
 
     def null(self, mat, data) -> tuple:

@@ -102,8 +102,7 @@ class Structure:
         local = (o_cols >= start) & (o_cols < start + n)
         other = np.zeros(o_cols.size, dtype=np.int64)
         other[local] = row_piece[o_cols[local] - start]
-        if not local.all():
-            other[~local] = ghost_values(mat, row_piece, o_cols[~local]).astype(np.int64)
+        other[~local] = ghost_values(mat, row_piece, o_cols[~local]).astype(np.int64)    # collective: every rank
         key = np.unique(row_piece[o_rows] * self.n_pieces + other)
         edges = np.stack([key // self.n_pieces, key % self.n_pieces], 1)
         self.n_comp, self.comp_of_piece = nullspace.components(self.n_pieces, coll.gather_rows(edges))
