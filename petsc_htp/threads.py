@@ -3,7 +3,7 @@
 An MPI rank that leaves OpenBLAS at its default uses a thread per core, and two ranks on two cores
 then contend for them: PETSc's vector and triangular-solve kernels (BLAS) ran three to four times slower on
 2 ranks of a bare 512^2 DMDA matrix until the threads were set to 1 (one thread per rank is what PETSc assumes).
-The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), each library once;
+The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), again only after new imports;
 elsewhere only torch's threads are set.
 """
 from __future__ import annotations
@@ -15,11 +15,14 @@ SETTERS = (("openblas_set_num_threads", "openblas_get_num_threads"),
            ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
            ("omp_set_num_threads", "omp_get_max_threads"))
 _FOUND = {}          # library path -> its (setter, getter) pairs
+_SCANNED = [-1, []]  # len(sys.modules) at the last scan of the process's libraries, and the pairs found
 
 
 def thread_pools() -> list:
-    """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process (a library
-    loaded since the last call, such as torch's OpenMP, is found too)."""
+    """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process. The libraries
+    are read again only after a module was imported since (a library such as torch's OpenMP comes with one)."""
+    if _SCANNED[0] == len(sys.modules):
+        return _SCANNED[1]
     try:
         with open("/proc/self/maps") as fh:
             paths = sorted({line.split()[-1] for line in fh if "blas" in line or "gomp" in line})
@@ -33,7 +36,8 @@ def thread_pools() -> list:
                 lib = None
             _FOUND[path] = [(getattr(lib, s), getattr(lib, g)) for s, g in SETTERS
                             if lib is not None and hasattr(lib, s) and hasattr(lib, g)]
-    return [pair for path in paths for pair in _FOUND[path]]
+    _SCANNED[:] = [len(sys.modules), [pair for path in paths for pair in _FOUND[path]]]
+    return _SCANNED[1]
 
 
 def set_threads(n: int) -> int | None:
