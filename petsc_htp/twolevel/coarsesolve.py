@@ -2,9 +2,13 @@
 
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
 one rank), or in 3-D above :data:`.sizing.COARSE_DIRECT_MAX` rows one GAMG V-cycle (a GCR to a loose tolerance
-preconditioned by GAMG on aggregation leaves). Any PETSc PC can replace it through its options.
+preconditioned by GAMG on aggregation leaves), whose near null space is W^T 1 (the constant's coarse coefficients;
+with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's dmda3d case at 64^3).
+Any PETSc PC can replace it through its options.
 """
 from __future__ import annotations
+
+from petsc4py import PETSc
 
 from . import inner, sizing
 
@@ -30,11 +34,25 @@ class CoarseSolve:
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2 = (E.createVecLeft() for _ in range(3))
+        if self.solver == "gamg":
+            self._near_null(ops)
         with inner.scoped(self.prefix, self.rest):      # PCREDUNDANT's inner solver reads its defaults now
             self.pc.setUp()
             if self.pc.getType() == "redundant":         # it factors at its first apply: do that here
                 self.g.set(0.0)
                 self.pc.apply(self.g, self.c)
+
+    def _near_null(self, ops):
+        """E's near null space for GAMG: W^T 1, the coarse coefficients of the constant (W's columns are orthonormal
+        per leaf), in place of GAMG's default, the constant vector."""
+        one, z = ops.W.createVecLeft(), ops.E.createVecLeft()
+        one.set(1.0)
+        ops.W.multTranspose(one, z)
+        z.normalize()
+        nsp = PETSc.NullSpace().create(vectors=[z], comm=ops.E.getComm())
+        ops.E.setNearNullSpace(nsp)
+        for obj in (one, z, nsp):
+            obj.destroy()
 
     def apply(self, g, c):
         """c = E^-1 g."""
