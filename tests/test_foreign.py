@@ -94,6 +94,19 @@ def test_graph_shape_tells_the_dimension_whatever_the_nonzeros_per_row(case, dim
     assert f"{dim}-D" in shape.describe()
 
 
+def test_graph_shape_follows_nonzeros_only_and_finds_rare_coupled_rows():
+    """Stored zeros couple nothing: a 3-D 7-point matrix whose couplings across planes are explicit zeros is 2-D.
+    Where coupled rows are rare (a 2-D block in a large identity), the seeds are still found among them."""
+    A, _ = foreign.dmda(3, 20)
+    A = sp.csr_matrix(A, copy=True)
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    A.data[np.abs(A.indices - rows) >= 400] = 0.0                  # couplings to the planes above and below
+    assert graph_shape(A).dim == 2 and A.nnz == foreign.dmda(3, 20)[0].nnz
+    B, _ = foreign.dmda(2, 30)
+    shape = graph_shape(sp.block_diag([sp.identity(200000), B]).tocsr())
+    assert shape.dim == 2 and not np.isnan(shape.growth), shape.describe()
+
+
 def test_graph_shape_counts_weak_couplings():
     strong, _ = foreign.anisotropic(40, 1.0, 0.0)
     weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
