@@ -27,7 +27,7 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
-            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind)
+            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)

@@ -8,7 +8,8 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 - 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
-  coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD.
+  coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A 2-D coarse
+  operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small. A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
@@ -41,6 +42,7 @@ EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural",
 FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
+COARSE_ND_ROWS = 65536                      # 2-D coarse operators above this many rows are ordered by nested dissection
 COARSE_DIRECT_MAX = {2: None, 3: 8192}      # coarse rows above which GAMG replaces the LU (None: never)
 LEAF_AMG = {3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
@@ -87,18 +89,22 @@ def coarse_solver(dim: int, rows: int) -> str:
     return "gamg" if limit is not None and rows > limit else "lu"
 
 
-def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "") -> dict:
+def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
     'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
     saves) in ``dim`` dimensions. On the coarse operator of aggregation leaves (``kind``) one V-cycle is too
     inexact for the deflated form (a bare 3-D DMDA matrix at 300 763 rows: 133 CG iterations against 39 with the
     coarse LU), so 'gamg' is a Krylov solve to :data:`COARSE_KRYLOV_RTOL` preconditioned by it (39 iterations, 2.0
     against 4.5 s with the LU and 4.2 with the V-cycle); GCR, which a V-cycle that is not positive definite on a
-    small coarse operator does not break, where CG stopped on an indefinite preconditioner."""
+    small coarse operator does not break, where CG stopped on an indefinite preconditioner. The LU of a coarse
+    operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested dissection in any dimension: on bare
+    2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430 and 61 100 coarse rows (640^2 and
+    768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms."""
     if solver == "gamg":
         if kind == "aggregation":
             return {"pc_type": "ksp", "ksp_ksp_type": "gcr", "ksp_ksp_rtol": COARSE_KRYLOV_RTOL,
                     **{"ksp_" + k: v for k, v in COARSE_AMG.items()}}
         return dict(COARSE_AMG)
-    opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": COARSE_ORDERING[dim]}
+    ordering = "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
+    opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": ordering}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts
