@@ -13,7 +13,8 @@ COARSE_SOLVERS = ("auto", "lu", "gamg")
 FALLBACKS = ("none", "jacobi")
 FORMS = ("auto", "deflated", "balanced")
 
-# Fields whose change needs a new analysis (ordering, partition); the others only a numeric step.
+# Fields whose change needs a new analysis (ordering, partition), or may switch between the two-level method and a
+# small matrix's whole-matrix factor (form, coarse_space_every); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
                   "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every")
 

@@ -20,7 +20,8 @@ _SCANNED = [-1, []]  # len(sys.modules) at the last scan of the process's librar
 
 def thread_pools() -> list:
     """(setter, getter) pairs of the thread pools of the shared libraries loaded in this process. The libraries
-    are read again only after a module was imported since (a library such as torch's OpenMP comes with one)."""
+    are read again only after a module was imported since (a library such as torch's OpenMP comes with one; one
+    loaded by ``ctypes`` alone is found at the next import)."""
     if _SCANNED[0] == len(sys.modules):
         return _SCANNED[1]
     try:

@@ -1,4 +1,5 @@
-"""Bad input for HTPPC, run under ``mpiexec -n 1`` or ``-n 2`` by tests/test_bad_input.py.
+"""Bad input for HTPPC, run under ``mpiexec -n 1`` or ``-n 2`` (``-n 3`` for
+``decoupled_rank``) by tests/test_bad_input.py.
 
 Every case builds its matrix on every rank, solves with CG + HTPPC as it comes (plus the case's options)
 and prints one line per rank: ``CASE <name> rank <r>: <outcome>`` with the outcome ``error: <message>``,

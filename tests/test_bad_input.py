@@ -1,4 +1,4 @@
-"""Bad input to HTPPC on 1 and 2 MPI ranks: each case ends in a named error or a correct solve, on every rank.
+"""Bad input to HTPPC on 1 and 2 MPI ranks (3 for a rank coupled to no other): each case ends in a named error or a correct solve, on every rank.
 
 The cases live in ``tests/bad_input_cases.py``, run under real ``mpiexec`` with a timeout (a hang fails).
 """

@@ -34,7 +34,7 @@ class CoarseSolve:
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2 = (E.createVecLeft() for _ in range(3))
-        if self.solver == "gamg":
+        if inner.multigrid(self.pc):
             self._near_null(ops)
         with inner.scoped(self.prefix, self.rest):      # PCREDUNDANT's inner solver reads its defaults now
             self.pc.setUp()

@@ -74,6 +74,12 @@ def configured_pc(comm, mat, prefix, defaults) -> tuple:
     return pc, rest
 
 
+def multigrid(pc) -> bool:
+    """Whether ``pc`` is GAMG, also inside a PCKSP."""
+    kind = pc.getType()
+    return kind == "gamg" or (kind == "ksp" and multigrid(pc.getKSP().getPC()))
+
+
 def held(pc) -> int:
     """Values a solver holds on this rank besides its operator: a factor's, or a multigrid hierarchy's coarser
     operators and interpolations, also inside a PCKSP (0 for other PC types, such as PCREDUNDANT's gathered
