@@ -12,7 +12,8 @@ def lines(ctx) -> list:
     opts = ctx.opts
     if ctx.variant is None:                    # nothing imported for a view before the setup
         return [f"HTPPC, variant {opts.variant}; not set up yet"]
-    out = [f"HTPPC, variant {opts.variant}: {ctx.variant.title}" + ("" if ctx.setup is not None else "; not set up yet")]
+    state = "" if ctx.setup is not None else "; not set up yet"
+    out = [f"HTPPC, variant {opts.variant}: {ctx.variant.title}{state}"]
     if ctx.variant.model:
         out.append(f"  model: {ctx.variant.model}")
     if ctx.setup is None:

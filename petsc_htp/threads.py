@@ -3,8 +3,8 @@
 An MPI rank that leaves OpenBLAS at its default uses a thread per core, and two ranks on two cores
 then contend for them: PETSc's vector and triangular-solve kernels (BLAS) ran three to four times slower on
 2 ranks of a bare 512^2 DMDA matrix until the threads were set to 1 (one thread per rank is what PETSc assumes).
-The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), again only after new imports;
-elsewhere only torch's threads are set.
+The setters of the loaded libraries are found in ``/proc/self/maps`` (as threadpoolctl does), again only after
+new imports; elsewhere only torch's threads are set.
 """
 from __future__ import annotations
 

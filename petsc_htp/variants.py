@@ -108,6 +108,7 @@ class TwoLevel:
         per_row = A.nnz / max(n, 1)
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             return None
+        # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):

@@ -261,6 +261,18 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     assert ctx.setup.space.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
 
 
+def test_overlapping_leaves_grow_by_layers_and_converge(frames):
+    """-htp_overlap k grows every leaf by k layers of its neighbours (restricted additive Schwarz leaves): each
+    layer adds rows, and CG still reaches its rtol in the true residual."""
+    A, b = permuted(frames[0], 3)
+    mat, sizes = petsc_mat(A), []
+    for overlap in (1, 2):
+        reason, its, relres, ksp = solve(mat, b, htp_overlap=overlap)
+        assert reason > 0 and relres <= 1.01e-8 and its <= 60, (overlap, reason_name(reason), its, relres)
+        sizes.append(ksp.getPC().getPythonContext().setup.leafsolver.member.size)
+    assert frames[0].n < sizes[0] < sizes[1]
+
+
 def test_two_level_options_set_after_a_whole_matrix_factor_make_a_new_analysis(frames):
     """A small matrix gets one factor; -htp_coarse_space_every or -htp_form set later are
     two-level options, so the next setup analyses anew and the two-level method runs."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .aggregation import THETA
+from .csr import row_entries
 
 SAMPLES = 16        # rows whose balls are grown
 RADIUS = 2          # the balls compared have radius RADIUS and 2 RADIUS
@@ -57,7 +58,7 @@ def _ball_sizes(A, seeds, radius) -> np.ndarray:
     out = []
     for step in range(1, 2 * radius + 1):
         seed_of, row = frontier // n, frontier % n
-        where, owner = _entries(A, row)
+        where, owner = row_entries(A.indptr, row)
         live = A.data[where] != 0                                      # stored zeros couple nothing
         reached = np.unique(seed_of[owner[live]] * n + A.indices[where[live]])
         frontier = reached[~np.isin(reached, ball, assume_unique=True)]
@@ -73,7 +74,7 @@ def _coupled_seeds(A, samples, rng) -> np.ndarray:
     n = A.shape[0]
 
     def coupled(rows):
-        where, owner = _entries(A, rows)
+        where, owner = row_entries(A.indptr, rows)
         hit = (A.data[where] != 0) & (A.indices[where] != rows[owner])
         return rows[np.bincount(owner[hit], minlength=rows.size) > 0]
 
@@ -83,17 +84,10 @@ def _coupled_seeds(A, samples, rng) -> np.ndarray:
     return rng.choice(found, min(samples, found.size), replace=False)
 
 
-def _entries(A, rows) -> tuple:
-    """Positions in ``A.data`` of the stored entries of ``rows``, and the index into ``rows`` of each."""
-    start, count = A.indptr[rows], A.indptr[rows + 1] - A.indptr[rows]
-    where = np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
-    return where, np.repeat(np.arange(rows.size), count)
-
-
 def _weak_share(A, every) -> float:
     """Share of the nonzero off-diagonal couplings of every ``every``-th row that are weak."""
     rows = np.arange(0, A.shape[0], every)
-    where, owner = _entries(A, rows)
+    where, owner = row_entries(A.indptr, rows)
     row, col, val = rows[owner], A.indices[where], A.data[where]
     off = (val != 0) & (col != row)
     diag = np.abs(A.diagonal())                                       # scipy's C loop: one read per row

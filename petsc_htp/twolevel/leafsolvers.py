@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from .csr import row_entries
+
 EXACT = ("cholesky", "lu")        # leaf PC types that solve D exactly
 
 
@@ -122,10 +124,9 @@ class OverlappingLeaves:
         col = rows.indices.astype(np.int64) - start
         local = (col >= 0) & (col < n) & (rows.data != 0)
         for _ in range(overlap):
-            count = np.diff(rows.indptr)[member]
-            first = np.repeat(rows.indptr[member], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+            first, owner = row_entries(rows.indptr, member)
             keep = local[first]
-            cand = np.unique(np.repeat(block, count)[keep] * n + col[first[keep]])
+            cand = np.unique(block[owner][keep] * n + col[first[keep]])
             have = block * n + member
             new = cand[~np.isin(cand, have)]
             block, member = np.concatenate([block, new // n]), np.concatenate([member, new % n])
@@ -133,9 +134,7 @@ class OverlappingLeaves:
         block, member = block[order], member[order]
         key = block * n + member
         sorter = np.argsort(key)
-        count = np.diff(rows.indptr)[member]
-        first = np.repeat(rows.indptr[member], count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-        owner = np.repeat(np.arange(member.size), count)
+        first, owner = row_entries(rows.indptr, member)
         ok = local[first] | (col[first] == member[owner])
         first, owner = first[ok], owner[ok]
         want = block[owner] * n + col[first]
