@@ -532,3 +532,27 @@ def test_methods_take_turns_frame_by_frame(env):
     assert [(r["method"], r["seed"]) for r in rows] == [(m, s) for s in sorted({r["seed"] for r in rows})
                                                         for m in ("cg_jacobi", "cg_icc")]
     assert all(r["ok"] for r in rows)
+
+
+def test_gamg_sweep_points_load_the_default_file_with_threshold_and_aggressive_levels_set():
+    """``gamg_t<threshold>_a<levels>`` is cg_gamg_default.opts with the two GAMG knobs set under its own prefix;
+    the families and their defaults are read off the names."""
+    from petsc4py import PETSc
+
+    from petsc_htp.bench.methods import family, resolve_method
+    from petsc_htp.bench.runner import load
+
+    m = resolve_method("gamg_t0.05_a0")
+    assert m.path.name == "cg_gamg_default.opts" and m.prefix == "bench_gamg_t0_05_a0_"
+    loaded = load(m)
+    try:
+        db = PETSc.Options(m.prefix)
+        assert db.getString("pc_type") == "gamg" and db.getReal("pc_gamg_threshold") == 0.05
+        assert db.getInt("pc_gamg_aggressive_coarsening") == 0
+    finally:
+        loaded.__exit__(None, None, None)
+    assert not PETSc.Options(m.prefix).hasName("pc_gamg_threshold")
+    assert [family(n) for n in ("cg_gamg", "gamg_t0_a1", "amgcl_ce500", "pyamg_sa", "cg_htp")] == [
+        ("GAMG", "cg_gamg_default"), ("GAMG", "cg_gamg_default"), ("AMGCL", "amgcl"), ("pyamg", "pyamg"), None]
+    with pytest.raises(ValueError, match="unknown method"):
+        resolve_method("gamg_tx_a1")

@@ -195,8 +195,9 @@ def test_new_leaves_when_the_couplings_move_and_not_otherwise():
 
 def test_foreign_study_quick(tmp_path):
     out = tmp_path / "foreign"
-    assert main(["--quick", "--out", str(out), "--studies", "foreign", "--methods", "cg_htp", "cg_icc",
-                 "amgcl_ce500", "--foreign-cases", "dmda2d", "free_surface", "--threads", "1", "--no-progress"]) == 0
+    assert main(["--quick", "--out", str(out), "--studies", "foreign", "--methods", "cg_htp", "cg_icc", "amgcl_ce500",
+                 "cg_gamg_default", "gamg_t0.05_a0", "--foreign-cases", "dmda2d", "free_surface", "--threads", "1",
+                 "--no-progress"]) == 0
     rows = store.read_jsonl(store.study_path(out, "foreign"))
     single = [r for r in rows if r["mode"] == "single"]
     assert {(r["case"], r["method"]) for r in single} >= {("dmda2d", "cg_htp"), ("free_surface", "amgcl_ce500")}
@@ -205,11 +206,19 @@ def test_foreign_study_quick(tmp_path):
     seq = [r for r in rows if r["mode"] == "sequence" and r["case"] == "free_surface"]
     assert len({r["n"] for r in seq if r["method"] == "cg_htp"}) == 2    # the liquid moved: new patterns
     fresh = {(r["case"], r["method"]): r for r in rows if r["mode"] == "fresh"}
-    assert set(fresh) == {(c, m) for c in ("dmda2d", "free_surface") for m in ("cg_htp", "cg_icc", "amgcl_ce500")}
+    assert set(fresh) == {(c, m) for c in ("dmda2d", "free_surface")
+                          for m in ("cg_htp", "cg_icc", "amgcl_ce500", "cg_gamg_default", "gamg_t0.05_a0")}
     assert all(r["ok"] and r["peak_rss_mb"] >= r["baseline_mb"] > 0 and r["import_ms"] > 0 for r in fresh.values())
     report = (out / "report.md").read_text()
     assert "## Matrices from other programs" in report and "first call of a fresh Python process" in report
     assert (out / "foreign.png").stat().st_size > 0
+    best = report[report.index("its default and its best swept setting, single"):]
+    head, _, first = best.split("\n")[2:5]
+    assert head.split(" | ")[:6] == ["| case", "N", "cg_htp", "GAMG default", "GAMG best", "cg_htp / GAMG best"], head
+    assert "AMGCL default | AMGCL best" in head and first.startswith("| dmda2d |"), best
+    cols = first.split(" | ")
+    assert cols[4].endswith(("cg_gamg_default", "gamg_t0.05_a0")) and cols[6] == "not run", first   # amgcl itself: not run
+    assert cols[7].endswith("amgcl_ce500"), first
 
 
 @pytest.mark.parametrize("ranks", [1, 2])

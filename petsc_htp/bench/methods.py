@@ -1,6 +1,7 @@
 """Which methods a benchmark runs: PETSc options files (see :mod:`petsc_htp.bench.harness`), plus pyamg and AMGCL."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -10,6 +11,9 @@ from .external import is_external
 PYAMG = "pyamg"
 DEFAULT_METHODS = ("cg_none", "cg_jacobi", "cg_icc", "cg_bjacobi", "cg_gamg", "cg_htp", "cg_paper",
                    "cg_twolevel_const", "cg_twolevel_eig", "cg_twolevel_learned", "pyamg", "pyamg_sa", "amgcl")
+GAMG_SWEEP = re.compile(r"gamg_t(-?\d+(?:\.\d+)?)_a(\d+)")   # gamg_t<threshold>_a<aggressive levels>
+FAMILIES = (("GAMG", "cg_gamg_default", re.compile(r"cg_gamg.*|gamg_t.*")),
+            ("AMGCL", "amgcl", re.compile(r"amgcl.*")), ("pyamg", "pyamg", re.compile(r"pyamg.*")))
 
 
 @dataclass(frozen=True)
@@ -28,15 +32,21 @@ class Method:
 
     @property
     def prefix(self) -> str:
-        """Options prefix the method's file is loaded under."""
-        return f"bench_{self.name}_"
+        """Options prefix the method's file is loaded under (the name with every character but letters, digits
+        and underscores made an underscore)."""
+        return "bench_" + re.sub(r"\W", "_", self.name) + "_"
 
 
 def resolve_method(name) -> Method:
-    """A method from an external solver's name (pyamg, pyamg_sa, amgcl, amgcl_ce<K>), a shipped or ``./options`` method name,
-    or a path to an ``.opts`` file."""
+    """A method from an external solver's name (pyamg, pyamg_sa, amgcl, amgcl_ce<K>), a GAMG sweep point
+    ``gamg_t<threshold>_a<levels>`` (``cg_gamg_default`` with ``-pc_gamg_threshold`` and
+    ``-pc_gamg_aggressive_coarsening`` set), a shipped or ``./options`` method name, or a path to an ``.opts`` file."""
     if is_external(name):
         return Method(name)
+    sweep = GAMG_SWEEP.fullmatch(name)
+    if sweep:
+        return Method(name, harness.find("cg_gamg_default"),
+                      (("pc_gamg_threshold", sweep[1]), ("pc_gamg_aggressive_coarsening", sweep[2])))
     path = harness.find(name)
     return Method(path.stem, path)
 
@@ -50,3 +60,11 @@ def resolve_methods(names) -> list:
             raise ValueError(f"method name {m.name!r} given twice")
         seen.add(m.name)
     return found
+
+
+def family(name) -> tuple | None:
+    """(family, its default method) of a baseline method name (GAMG, AMGCL or pyamg), or None."""
+    for fam, default, pattern in FAMILIES:
+        if pattern.fullmatch(name):
+            return fam, default
+    return None

@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from ..aggregate import cells
+from ..baselines import best_table
 from ..foreigncases import CASES, PATTERN_CHANGES, pyamg_cases
 from ..markdown import image, md_table, ms, n_label
 from .base import Size, Study, solve_all, tag
@@ -132,9 +133,13 @@ def sequence(methods, names, scales, frames, extra, tick) -> list:
     return rows
 
 
+def _mode(res, mode) -> list:
+    return [r for r in res.rows["foreign"] if r.get("mode") == mode]
+
+
 def table(res, mode) -> str:
     """Median ms (setup + solve), iterations and the largest true relres per case and method."""
-    rows = [r for r in res.rows["foreign"] if r.get("mode") == mode]
+    rows = _mode(res, mode)
     if not rows:
         return "(none in this run)"
     size = "scale" if mode == "sequence" else "n"        # a moving free surface changes N frame by frame
@@ -236,10 +241,14 @@ class Foreign(Study):
             "Mat and KSP, setup (analysis included) + solve ms and median iterations in parentheses, after one "
             "warm-up solve per method and N.",
             table(res, "single"),
+            "Each baseline family at its default and its best swept setting, single solves (ms, iterations):",
+            best_table(_mode(res, "single"), res.methods("foreign")),
             f"Sequence mode: {meta.get('frames', '?')} more frames per case with new values on one persistent KSP "
             f"per PETSc method ({changes}: a new pattern every frame, so a new Mat, its N about the one shown); "
             "pyamg and AMGCL rebuild. Median ms per frame (iterations).",
             table(res, "sequence"),
+            "The same, sequence mode (ms per frame):",
+            best_table(_mode(res, "sequence"), res.methods("foreign"), ("case", "scale")),
             "The same single solve as the first call of a fresh Python process (imports excluded): setup + solve ms "
             "/ peak resident memory above the process's before the solve, MiB:",
             fresh_table(res),

@@ -19,6 +19,7 @@ from ..cases import held_out_frames
 from ..markdown import image, its, md_table, ms, n_label, ratio
 from ..plotting import time_bars
 from ..applycosts import apply_costs
+from ..baselines import best_table
 from .base import DIM, Size, Study, tag
 
 CHART = "sequence.png"
@@ -176,6 +177,8 @@ class Sequence(Study):
             "Median ms per frame (setup + solve) over the frames after the first, mean iterations in parentheses; "
             "one warm-up frame per method and N is excluded.",
             times(res),
+            "Each baseline family at its default and its best swept setting (ms per frame, iterations):",
+            best_table([r for r in _frames(res) if not r.get("first")], res.methods("sequence"), ("n",)),
             "Two-level HTPPC: the first frame's setup (analysis included) against the median numeric step of the "
             "later frames and its phases (ms), and the parts of one application (the form in use) in MatMults "
             "of A:",

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 
 from ..aggregate import cells
+from ..baselines import best_table
 from ..cases import table_problems
 from ..markdown import image, its, md_table, missing, ms, n_label, pm, sci, time_cell, tol
 from ..plotting import time_bars
@@ -81,6 +82,8 @@ class Table(Study):
             body(res),
             "Total ms per frame, median; mean ± std:",
             md_table(head, total),
+            "Each baseline family at its default and its best swept setting (median ms, iterations):",
+            best_table(res.rows["table"], methods, ("n",)),
             "PCG iterations, mean ± std (supplement Table 7):",
             md_table(head, iters),
             "Largest true relative residual among converged frames:",
