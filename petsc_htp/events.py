@@ -42,8 +42,8 @@ def logged(name: str):
 
 @contextlib.contextmanager
 def phase(name: str, times: dict, key: str):
-    """The block inside the log event ``name``, its wall time in ms stored as ``times[key]``."""
+    """The block inside the log event ``name``, its wall time in ms added to ``times[key]``."""
     t0 = time.perf_counter()
     with logged(name):
         yield
-    times[key] = 1e3 * (time.perf_counter() - t0)
+    times[key] = times.get(key, 0.0) + 1e3 * (time.perf_counter() - t0)

@@ -78,7 +78,7 @@ class TwoLevelPC:
                 self.leafsolver = OverlappingLeaves(lay, rows, st.cfg.overlap, factor)
             else:
                 self.leafsolver = ExactLeaves(lay, self.d_values, factor, lay.identity and st.coll.size == 1)
-            self.space = CoarseSpace(st, factor)
+            self.space = CoarseSpace(st, factor, None if st.cfg.overlap else self.leafsolver.f)
             self.ops = Operators(mat, rows, st)
             self.coarse = CoarseSolve(st, st.cfg.solver, prefix + "cs_")
             self.forms = Forms(mat, self.ops, self.leafsolver, self.coarse, st.cfg.form)
@@ -97,12 +97,17 @@ class TwoLevelPC:
             np.take(data, lay.d_src, out=self.d_values)
             if ground.any():
                 nullspace.ground(self.d_values, lay.d_diag, nullspace.first_rows(lay.pieces.label, ground))
-            self.leafsolver.numeric(data)
+            new_space = not (keep_space and self.space.kept is not None)
+            if not (new_space and self.space.shared):        # else the space borrows the factor first
+                self.leafsolver.numeric(data)
         with phase("HTPCoarseSpace", T, "coarse_space"):
-            if keep_space and self.space.kept is not None:
-                self.space.age += 1
-            else:
+            if new_space:
                 self.space.compute(self.d_values, self.ops.o_values, self.ops.o_perm_rows, self._seeds(rows, density))
+            else:
+                self.space.age += 1
+        if new_space and self.space.shared:
+            with phase("HTPLeafFactor", T, "leaf"):
+                self.leafsolver.numeric(data)
         with phase("HTPProducts", T, "products"):
             self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
@@ -129,10 +134,12 @@ class TwoLevelPC:
     def check(self, probes=0) -> str:
         """Empty when every factorisation succeeded, the coarse space is finite and ``probes`` random Rayleigh
         quotients of the balanced M are positive, else why not (collective)."""
-        bad = []
-        for name, pc in (("leaf", self.leafsolver.pc), ("Neumann", self.space.S_factor), ("coarse", self.coarse.pc)):
-            if pc is not None and pc.getFailedReason() != PETSc.PC.FailedReason.NOERROR:
-                bad.append(f"{name} factorisation failed ({pc.getFailedReason()})")
+        bad, ok = [], PETSc.PC.FailedReason.NOERROR
+        reasons = (("leaf", self.leafsolver.pc.getFailedReason()), ("Neumann", self.space.failed),
+                   ("coarse", self.coarse.pc.getFailedReason() if self.coarse.pc is not None else ok))
+        for name, reason in reasons:
+            if reason != ok:
+                bad.append(f"{name} factorisation failed ({reason})")
         if not np.all(np.isfinite(self.space.values)):
             bad.append("the coarse space is not finite")
         if self.st.coll.any(bad) and not bad:

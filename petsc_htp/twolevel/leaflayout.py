@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .csr import compact
 from .leaves import Leaves
 from .nullspace import Pieces, find_pieces
 
@@ -128,5 +129,7 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     o_src = np.flatnonzero(~inside & nonzero & ~diag)
     coupled = np.zeros(pieces.n_pieces, dtype=bool)
     coupled[pieces.label[iperm[entry_row[o_src]]]] = True
-    return LeafLayout(leaves, start, perm, iperm, identity, leaf, pos, entry_row, d_indptr, d_cols, d_src, d_diag,
-                      o_src, pieces, ~coupled, ~coupled & (pieces.size == 1))
+    nnz = rows.indptr[-1]
+    return LeafLayout(leaves, start, perm, iperm, identity, leaf, pos, compact(entry_row, n), compact(d_indptr, nnz),
+                      compact(d_cols, n), compact(d_src, nnz), d_diag, compact(o_src, nnz), pieces, ~coupled,
+                      ~coupled & (pieces.size == 1))

@@ -9,6 +9,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import coarsespace
+from .csr import compact
 from .inner import scoped
 
 
@@ -35,11 +36,11 @@ class Operators:
         n, N = lay.n, st.N
         self.mat, self.st = mat, st
         self.o_values = np.zeros(lay.o_src.size)
-        self.o_perm_rows = lay.iperm[lay.o_rows]                     # O's rows in the leaves' order
+        self.o_perm_rows = compact(lay.iperm[lay.o_rows], n)         # O's rows in the leaves' order
         self.W = self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
-        self.O = coo_aij(comm, lay.o_rows + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
+        self.O = coo_aij(comm, lay.o_rows.astype(np.int64) + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
         try:
-            self.W = coo_aij(comm, st.w_rows, st.w_cols, (N, st.m), (n, int(st.ncols.sum())), st.col_block)
+            self.W = coo_aij(comm, *st.w_pattern(), (N, st.m), (n, int(st.ncols.sum())), st.col_block)
         except Exception:
             self.destroy()
             raise

@@ -2,7 +2,10 @@
 components' columns left out (:mod:`.nullspace`).
 
 The eig and learned spaces take one inverse-iteration step of the leaves' Neumann matrix S (one sparse matrix
-per rank, its factor PETSc's, one multi-vector triangular solve). Aggregation leaves with at most one such vector
+per rank, its factor PETSc's, one multi-vector triangular solve). S has D's pattern and differs only on the
+diagonal: with exact or incomplete leaf solves it borrows the leaf solver's matrix and factor (S's diagonal in,
+factor, solve, D's diagonal back; the leaf solver factors D after), which saves a matrix and a factor of the
+rank's size (about 90 MiB at 1M rows in 2-D). Aggregation leaves with at most one such vector
 take it in numpy without the padded layout (:func:`.coarsespace.flat`); other leaves go through the padded basis
 (:func:`.coarsespace.basis`).
 """
@@ -24,11 +27,13 @@ class CoarseSpace:
     st : Structure
     make_pc : callable
         Mat -> PC, the factor of S (configured like the leaf factor).
+    shared : leafsolvers._Factored, optional
+        The leaf solver's matrix of D and its factor, to borrow for S (its values are D's, in place).
     """
 
-    def __init__(self, st, make_pc):
+    def __init__(self, st, make_pc, shared=None):
         lay = st.lay
-        self.st, self.values = st, np.zeros(st.w_rows.size)
+        self.st, self.values = st, np.zeros(st.w_p.size)
         self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra
         if self.flat:
@@ -41,8 +46,11 @@ class CoarseSpace:
             self.src = lay.pos[st.w_p] * (st.lead + self.constants.shape[2]) + st.w_j
         self.seeds = coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, st.lead) if st.lead else None
         self.s_values = self.S = self.S_factor = self.S_csr = self._dense = None
-        self._zeroed_key = None
-        if st.lead:
+        self._zeroed_key, self.failed = None, PETSc.PC.FailedReason.NOERROR
+        self.shared = bool(st.lead) and shared is not None
+        if self.shared:
+            self.s_values, self.S, self.S_factor = shared.values, shared.mat, shared.pc
+        elif st.lead:
             self.s_values = np.zeros(lay.d_src.size)
             self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, lay.n)
             try:
@@ -50,6 +58,7 @@ class CoarseSpace:
             except Exception:
                 self.destroy()
                 raise
+        if st.lead:
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
 
     def null(self, mat, data) -> tuple:
@@ -72,17 +81,29 @@ class CoarseSpace:
 
     def compute(self, d_values, o_values, o_rows, seeds=None):
         """New coarse vectors from D's values and the couplings ``o_values`` (rows ``o_rows``, leaves' order);
-        ``seeds`` replaces the smooth seeds (learned space)."""
-        st, lay = self.st, self.st.lay
-        diag = None
-        if st.lead:                                    # one inverse-iteration step of the leaves' Neumann matrices
-            outside = np.bincount(o_rows, o_values, minlength=lay.n)
-            diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
+        ``seeds`` replaces the smooth seeds (learned space). With a borrowed factor, D's values come back as they
+        were but its factor holds S's: the leaf solver factors D after this."""
+        lay = self.st.lay
+        if not self.st.lead:
+            return self._fill(None, None)
+        outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
+        diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
+        kept = d_values[lay.d_diag]
+        if not self.shared:
             np.copyto(self.s_values, d_values)
-            self.s_values[lay.d_diag] = diag
+        self.s_values[lay.d_diag] = diag
+        try:
             self.S.stateIncrease()
             self.S_factor.setUp()
-            seeds = self.seeds if seeds is None else seeds
+            self.failed = self.S_factor.getFailedReason()
+            self._fill(self.seeds if seeds is None else seeds, diag)
+        finally:
+            if self.shared:
+                d_values[lay.d_diag] = kept
+
+    def _fill(self, seeds, diag):
+        """W's values from the seeds through S's factor (none: the constants alone)."""
+        st, lay = self.st, self.st.lay
         self.age = 0
         if self.flat:
             np.copyto(self.values, self.fixed)
@@ -92,8 +113,8 @@ class CoarseSpace:
                 self.values[self.lead_mask] = y[st.w_p[self.lead_mask]]
                 self.kept = st.ncols - ((st.ncols > 0) & ~ok)
             return
-        P, self.kept = coarsespace.basis(lay, self.constants, seeds if st.lead else None, self.solve_neumann,
-                                         st.extra, self.S_csr, diag, st.cfg.tol)
+        P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.S_csr, diag,
+                                         st.cfg.tol)
         np.take(P.reshape(-1), self.src, out=self.values)
 
     def finish(self) -> np.ndarray:
@@ -109,7 +130,7 @@ class CoarseSpace:
         key = dropped.tobytes()
         if self._zeroed_key != key:
             gone = np.zeros(int(self.st.ncols.sum()), dtype=bool)
-            gone[dropped - self.st.leaf_col[0]] = True
+            gone[dropped - self.st.col_first] = True
             self._zeroed_key, self._zeroed_at = key, np.flatnonzero(gone[self.st.w_local_col])
         return self._zeroed_at
 
@@ -134,8 +155,8 @@ class CoarseSpace:
         self._dense = None
 
     def nnz(self) -> int:
-        """Values held: S and its factor."""
-        if self.S is None:
+        """Values held: S and its factor (none when borrowed from the leaf solver)."""
+        if self.S is None or self.shared:
             return 0
         return int(self.S.getInfo()["nz_used"] + self.S_factor.getFactorMatrix().getInfo()["nz_used"])
 
@@ -143,6 +164,6 @@ class CoarseSpace:
         """Free the PETSc objects."""
         self._free_dense()
         for obj in (self.S, self.S_factor):
-            if obj is not None:
+            if obj is not None and not self.shared:
                 obj.destroy()
         self.S = self.S_factor = None

@@ -16,6 +16,7 @@ from . import nullspace, sizing
 from ..collective import Collective
 from ..petscmat import ghost_values
 from .aggregation import THETA
+from .csr import compact
 from .graphshape import graph_shape
 from .leaflayout import layout
 from .leaves import choose_leaves
@@ -131,11 +132,16 @@ class Structure:
         self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
         per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
         row = np.repeat(np.arange(lay.n), per_row)
-        self.w_j = np.arange(row.size) - np.repeat(np.cumsum(per_row) - per_row, per_row)    # column within the leaf
-        self.w_p = lay.iperm[row]                                     # the row in the leaves' order
-        self.w_rows = row + lay.start
-        self.w_cols = self.leaf_col[lay.leaf[self.w_p]] + self.w_j
-        self.w_local_col = self.w_cols - first                        # W's columns of this rank's rows are its own
+        j = np.arange(row.size) - np.repeat(np.cumsum(per_row) - per_row, per_row)
+        self.w_j = compact(j, self.ncols.max(initial=0) + 1)           # the column within the leaf
+        self.w_p = compact(lay.iperm[row], lay.n)                     # the row in the leaves' order
+        self.col_first = int(first)
+        self.w_local_col = compact(self.leaf_col[lay.leaf[self.w_p]] - first + self.w_j, int(self.ncols.sum()) + 1)
+
+    def w_pattern(self) -> tuple:
+        """W's entries as global (rows, columns), made on demand (W's preallocation) and not kept."""
+        lay = self.lay
+        return lay.perm[self.w_p] + lay.start, self.w_local_col.astype(np.int64) + self.col_first
 
     def my_pieces(self, flags) -> np.ndarray:
         """This rank's part of a global per-piece array."""
