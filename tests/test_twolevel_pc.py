@@ -500,3 +500,32 @@ def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):
     viewer.destroy()
     text = (tmp_path / "view.txt").read_text()
     assert "coarse solve: one GAMG V-cycle" in text and "by the problem" not in text.split("coarse solve:")[1][:80]
+
+
+def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
+    """From COARSE_METIS_ROWS coarse rows on one rank the leaves' coarse columns come in METIS's nested-dissection
+    order and the LU keeps it: the same coarse operator permuted (same values; at this small size about the same fill), the same
+    iterations; never on several ranks or for a GAMG coarse solve."""
+    from petsc_htp.scenes import foreign
+
+    A, b = foreign.dmda(2, 120)
+    mat = petsc_mat(A, null=False)
+    runs = {}
+    for limit in (10 ** 9, 0):
+        monkeypatch.setattr(sizing, "COARSE_METIS_ROWS", limit)
+        reason, its, relres, ksp = solve(mat, b)
+        setup = ksp.getPC().getPythonContext().setup
+        E = setup.ops.E
+        runs[limit] = (its, np.sort(E.getDiagonal().getArray()), E.getInfo()["nz_used"],
+                       setup.coarse.pc.getFactorMatrix().getInfo()["nz_used"], setup.st.ordered)
+        assert reason > 0 and relres <= 1.01e-8
+    (its0, d0, nz0, f0, o0), (its1, d1, nz1, f1, o1) = runs[10 ** 9], runs[0]
+    assert (o0, o1) == (False, True) and abs(its0 - its1) <= 1 and nz0 == nz1 and f1 <= 1.1 * f0, runs
+    np.testing.assert_allclose(d0, d1, rtol=1e-12)
+    viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
+    ksp.view(viewer)
+    viewer.destroy()
+    assert "coarse columns in METIS's nested-dissection order" in (tmp_path / "view.txt").read_text()
+    assert sizing.coarse_options(2, False, "lu", rows=10 ** 6, ordered=True)["pc_factor_mat_ordering_type"] == "natural"
+    assert [sizing.metis_ordered(s, 3, 10 ** 6, r) for s, r in (("lu", 1), ("lu", 2), ("auto", 1), ("gamg", 1))] \
+        == [True, False, False, False]

@@ -27,7 +27,7 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
-            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m)
+            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m, st.ordered)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)
@@ -65,7 +65,8 @@ class CoarseSolve:
             limit = sizing.COARSE_DIRECT_MAX[self.st.dim]
             direct = f"direct up to {limit}" if limit else "always direct"
             why = f" (by the problem: {self.st.m} rows; {direct} in {self.st.dim}-D)"
-        return f"coarse solve: {inner.text(self.pc)}{why}; options -{self.prefix}*"
+        order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
+        return f"coarse solve: {inner.text(self.pc)}{why}{order}; options -{self.prefix}*"
 
     def nnz(self) -> int:
         """Values the solver holds besides the operator."""

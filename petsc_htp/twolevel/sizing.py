@@ -9,7 +9,8 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
   coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A 2-D coarse
-  operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`).
+  operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`);
+  from :data:`COARSE_METIS_ROWS` rows on one rank its columns come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small. A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
@@ -43,6 +44,7 @@ FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
+COARSE_METIS_ROWS = 12000                   # coarse rows from which, on one rank, METIS orders the coarse columns
 COARSE_DIRECT_MAX = {2: None, 3: 8192}      # coarse rows above which GAMG replaces the LU (None: never)
 LEAF_AMG = {3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
@@ -89,7 +91,14 @@ def coarse_solver(dim: int, rows: int) -> str:
     return "gamg" if limit is not None and rows > limit else "lu"
 
 
-def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0) -> dict:
+def metis_ordered(solver: str, dim: int, rows: int, ranks: int) -> bool:
+    """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): one rank, a coarse LU ('lu', or 'auto'
+    choosing it) of at least :data:`COARSE_METIS_ROWS` rows."""
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows) == "lu")
+    return ranks == 1 and lu and rows >= COARSE_METIS_ROWS
+
+
+def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
     'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
     saves) in ``dim`` dimensions. On the coarse operator of aggregation leaves (``kind``) one V-cycle is too
@@ -99,12 +108,13 @@ def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: 
     small coarse operator does not break, where CG stopped on an indefinite preconditioner. The LU of a coarse
     operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested dissection in any dimension: on bare
     2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430 and 61 100 coarse rows (640^2 and
-    768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms."""
+    768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms. A coarse operator
+    whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
     if solver == "gamg":
         if kind == "aggregation":
             return {"pc_type": "ksp", "ksp_ksp_type": "gcr", "ksp_ksp_rtol": COARSE_KRYLOV_RTOL,
                     **{"ksp_" + k: v for k, v in COARSE_AMG.items()}}
         return dict(COARSE_AMG)
-    ordering = "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
+    ordering = "natural" if ordered else "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
     opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": ordering}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from . import nullspace, sizing
+from . import coarseorder, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import ghost_values
 from .aggregation import THETA
@@ -53,7 +53,7 @@ class Structure:
         self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf)
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
-        self._columns(net_rank)
+        self._columns(net_rank, rows)
         if self.leaves.kind == "aggregation":             # where each off-diagonal entry of D and its diagonals sit
             lay = self.lay
             r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
@@ -110,9 +110,10 @@ class Structure:
         self.comp_of_row = self.comp_of_piece[row_piece]              # of A's local rows
         self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
 
-    def _columns(self, net_rank):
+    def _columns(self, net_rank, rows):
         """Coarse columns of every leaf (modes, extras, then one per piece but decoupled ones), their global numbers
-        and W's pattern. A leaf of decoupled rows alone has no column."""
+        (leaf after leaf, the leaves in METIS's order where :func:`.sizing.metis_ordered`) and W's pattern. A leaf of
+        decoupled rows alone has no column."""
         lay, cfg = self.lay, self.cfg
         lv, pc = lay.leaves, lay.pieces
         self.q = 0 if cfg.coarse == "const" else (net_rank if cfg.coarse == "learned" else cfg.rank) - 1
@@ -128,7 +129,11 @@ class Structure:
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
-        self.leaf_col = first + np.concatenate(([0], np.cumsum(self.ncols)[:-1]))
+        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size)
+        order = coarseorder.nested_dissection(coarseorder.leaf_graph(lay, rows)) if self.ordered \
+            else np.arange(lv.n_leaves)
+        self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
+        self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
         self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
         per_row = self.ncols[lay.leaf[lay.iperm]]                     # W entries of each of A's rows
         row = np.repeat(np.arange(lay.n), per_row)
