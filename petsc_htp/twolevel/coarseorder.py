@@ -4,7 +4,11 @@ A couples them), so the coarse operator comes out ordered and its LU takes the n
 On a bare 1024^2 DMDA matrix (106 974 coarse rows in 2x2 blocks) the LU then holds 13.4 against 18.0 million
 values and factors in 648 against 1349 ms under PETSc's nested dissection (QMD: slower still), for 197 ms of
 METIS once per pattern; 74 against 161 ms (QMD) at 27 000 rows for 42 ms of METIS, a loss below about 12 000
-(:data:`~.sizing.COARSE_METIS_ROWS`). Only on one rank: on several, every rank's columns are its own block.
+(:data:`~.sizing.COARSE_METIS_ROWS`).
+
+On several ranks every rank orders its own leaves, those coupled to other ranks' last: in the gathered coarse
+operator (PCREDUNDANT) the leaves inside each rank come in nested-dissection order and the ranks' interface
+leaves form the top separator, so the natural ordering holds there too, and no graph is gathered.
 """
 from __future__ import annotations
 
@@ -12,17 +16,25 @@ import numpy as np
 import scipy.sparse as sp
 
 
-def leaf_graph(lay, rows) -> sp.csr_matrix:
-    """The symmetric graph of the leaves of one rank's ``lay``, an edge where A's ``rows`` couple two leaves
-    (O's entries), without self loops."""
+def leaf_order(lay, rows) -> np.ndarray:
+    """The order of one rank's leaves (position i holds leaf ``order[i]``): METIS's nested dissection of the
+    leaves coupled only within the rank (an edge where A's ``rows`` couple two leaves: O's entries), then the
+    leaves coupled to other ranks'."""
     leaf_of = lay.leaf[lay.iperm]
-    r, c = leaf_of[lay.o_rows], leaf_of[rows.indices[lay.o_src] - lay.start]
+    col = rows.indices[lay.o_src].astype(np.int64) - lay.start
+    local = (col >= 0) & (col < lay.n)
+    row_leaf = leaf_of[lay.o_rows]
     K = lay.leaves.n_leaves
-    G = sp.csr_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(K, K))
+    interface = np.zeros(K, dtype=bool)
+    interface[row_leaf[~local]] = True
+    inner = np.flatnonzero(~interface)
+    number = np.full(K, -1)
+    number[inner] = np.arange(inner.size)
+    r, c = number[row_leaf[local]], number[leaf_of[col[local]]]
+    keep = (r >= 0) & (c >= 0) & (r != c)
+    G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int8), (r[keep], c[keep])), shape=(inner.size,) * 2)
     G = (G + G.T).tocsr()
-    G.setdiag(0)
-    G.eliminate_zeros()
-    return G
+    return np.concatenate([inner[nested_dissection(G)], np.flatnonzero(interface)])
 
 
 def nested_dissection(G) -> np.ndarray:

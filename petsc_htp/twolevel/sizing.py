@@ -10,7 +10,7 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
   coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A 2-D coarse
   operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`);
-  from :data:`COARSE_METIS_ROWS` rows on one rank its columns come ordered by METIS (:mod:`.coarseorder`).
+  from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small. A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
@@ -44,7 +44,7 @@ FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
 COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
-COARSE_METIS_ROWS = 12000                   # coarse rows from which, on one rank, METIS orders the coarse columns
+COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
 COARSE_DIRECT_MAX = {2: None, 3: 8192}      # coarse rows above which GAMG replaces the LU (None: never)
 LEAF_AMG = {3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
@@ -91,11 +91,11 @@ def coarse_solver(dim: int, rows: int) -> str:
     return "gamg" if limit is not None and rows > limit else "lu"
 
 
-def metis_ordered(solver: str, dim: int, rows: int, ranks: int) -> bool:
-    """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): one rank, a coarse LU ('lu', or 'auto'
-    choosing it) of at least :data:`COARSE_METIS_ROWS` rows."""
+def metis_ordered(solver: str, dim: int, rows: int) -> bool:
+    """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
+    it) of at least :data:`COARSE_METIS_ROWS` rows."""
     lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows) == "lu")
-    return ranks == 1 and lu and rows >= COARSE_METIS_ROWS
+    return lu and rows >= COARSE_METIS_ROWS
 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:

@@ -129,9 +129,8 @@ class Structure:
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
-        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size)
-        order = coarseorder.nested_dissection(coarseorder.leaf_graph(lay, rows)) if self.ordered \
-            else np.arange(lv.n_leaves)
+        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m)
+        order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
         self.piece_col = np.where(self.has_col, self.leaf_col[pc.leaf] + lead + index, -1)
