@@ -60,3 +60,24 @@ def test_import_leaves_torch_out():
             "from petsc_htp import HTPPC; import petsc_htp.variants, petsc_htp.twolevel.composed; "
             "sys.exit('torch' in sys.modules)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+def test_thread_pools_are_read_again_only_after_an_extension_module_is_imported():
+    """Reading /proc/self/maps after a large solve costs about 2 ms, a small matrix's whole solve: a pure-Python
+    import keeps the pools found, an extension module's import (a library that may bring a pool) reads them
+    again."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy; from petsc_htp.threads import thread_pools\n"
+            "first = thread_pools()\n"
+            "assert 'colorsys' not in sys.modules and 'xxlimited' not in sys.modules\n"
+            "import colorsys\n"
+            "kept = thread_pools()\n"
+            "import xxlimited\n"
+            "again = thread_pools()\n"
+            "print(kept is first, again is not kept, sorted(map(str, again)) == sorted(map(str, first)), len(first))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    kept, fresh, same, found = out.stdout.split()
+    assert (kept, fresh, same) == ("True", "True", "True") and int(found) > 0, out.stdout

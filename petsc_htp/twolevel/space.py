@@ -88,7 +88,7 @@ class CoarseSpace:
             return self._fill(None, None)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
         diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
-        kept = d_values[lay.d_diag]
+        d_diagonal = d_values[lay.d_diag]
         if not self.shared:
             np.copyto(self.s_values, d_values)
         self.s_values[lay.d_diag] = diag
@@ -99,7 +99,7 @@ class CoarseSpace:
             self._fill(self.seeds if seeds is None else seeds, diag)
         finally:
             if self.shared:
-                d_values[lay.d_diag] = kept
+                d_values[lay.d_diag] = d_diagonal
 
     def _fill(self, seeds, diag):
         """W's values from the seeds through S's factor (none: the constants alone)."""
