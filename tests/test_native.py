@@ -62,10 +62,10 @@ def test_import_leaves_torch_out():
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
-def test_thread_pools_are_read_again_only_after_an_extension_module_is_imported():
-    """Reading /proc/self/maps after a large solve costs about 2 ms, a small matrix's whole solve: a pure-Python
+def test_thread_pools_are_read_again_only_when_a_shared_object_was_loaded():
+    """The BLAS and OpenMP pools are looked up again only when the process loaded a shared object: a pure-Python
     import keeps the pools found, an extension module's import (a library that may bring a pool) reads them
-    again."""
+    again (reading /proc/self/maps at every setup cost about 1-2 ms, a small matrix's whole solve)."""
     import subprocess
     import sys
 
