@@ -107,6 +107,23 @@ def test_graph_shape_follows_nonzeros_only_and_finds_rare_coupled_rows():
     assert shape.dim == 2 and not np.isnan(shape.growth), shape.describe()
 
 
+def test_both_ball_searches_give_the_same_balls():
+    """The breadth-first search and the sparse products grow the same balls, stored zeros coupling nothing (the
+    search is picked by cost only)."""
+    from petsc_htp.twolevel import graphshape as gs
+
+    A, _ = foreign.dmda(3, 12)
+    A = sp.csr_matrix(A, copy=True)
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    A.data[(A.indices - rows) % 7 == 3] = 0.0                       # stored zeros here and there
+    for M in (A, meshes.p1_laplacian(3, 2000)[0].tocsr(), foreign.dmda(2, 40)[0].tocsr()):
+        seeds = gs._coupled_seeds(M, gs.SAMPLES, np.random.default_rng(1)).astype(np.int64)
+        bfs, products = gs._ball_sizes(M, seeds, gs.RADIUS), gs._ball_sizes_by_products(M, seeds, gs.RADIUS)
+        np.testing.assert_array_equal(bfs, products)
+        assert (bfs[1] > bfs[0]).all()
+    assert gs._by_products(meshes.p1_laplacian(3, 8000)[0].tocsr()) and not gs._by_products(foreign.dmda(2, 256)[0])
+
+
 def test_graph_shape_counts_weak_couplings():
     strong, _ = foreign.anisotropic(40, 1.0, 0.0)
     weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
