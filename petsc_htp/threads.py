@@ -32,7 +32,7 @@ def loaded_objects() -> list:
     ``/proc/self/maps`` costs about 1 ms, and more after a large solve); empty where there is no such call."""
     try:
         walk = ctypes.CDLL(None).dl_iterate_phdr
-    except (OSError, AttributeError):
+    except (OSError, AttributeError, TypeError):     # no glibc (CDLL(None) fails on Windows)
         return []
     names = []
 

@@ -528,3 +528,42 @@ def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     assert "coarse columns in METIS's nested-dissection order" in (tmp_path / "view.txt").read_text()
     assert sizing.coarse_options(2, False, "lu", rows=10 ** 6, ordered=True)["pc_factor_mat_ordering_type"] == "natural"
     assert [sizing.metis_ordered(s, 3, 10 ** 6) for s in ("lu", "auto", "gamg")] == [True, False, False]
+
+
+def test_a_failed_neumann_factor_is_reported_and_the_next_values_recover(frames, monkeypatch):
+    """The coarse space borrows the leaf factor for S: an S whose factorisation fails (a zero pivot, ICC leaves
+    without a shift) is named by the checks, the leaf factor still holds D, and new values factor afresh (ICC
+    would otherwise keep the failure)."""
+    from petsc_htp.twolevel import coarsespace
+
+    made = coarsespace.neumann_diagonal
+    calls = []
+
+    def singular_once(*args):
+        d = made(*args)
+        calls.append(1)
+        if len(calls) == 1:
+            d[:] = 0.0
+        return d
+
+    monkeypatch.setattr(coarsespace, "neumann_diagonal", singular_once)
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    prefix = f"tl{next(_PREFIXES)}_"
+    for k, v in {"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_direct_max": 0,
+                 "htp_leaf_pc_type": "icc", "htp_leaf_pc_factor_shift_type": "none", "htp_coarse": "eig"}.items():
+        PETSc.Options(prefix).setValue(k, v)
+    pc = PETSc.PC().create(PETSc.COMM_SELF)
+    pc.setOptionsPrefix(prefix)
+    pc.setOperators(mat, mat)
+    pc.setFromOptions()
+    pc.setUp()
+    setup = pc.getPythonContext().setup
+    assert "Neumann factorisation failed" in setup.check() and "leaf" not in setup.check()
+    mat.scale(2.0)                                   # new values: the space and the leaves factored again
+    pc.setUp()
+    setup = pc.getPythonContext().setup
+    x, y = mat.createVecs()
+    x.setRandom()
+    pc.apply(x, y)
+    assert setup.check() == "" and np.isfinite(y.getArray()).all()

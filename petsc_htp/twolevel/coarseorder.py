@@ -32,7 +32,8 @@ def leaf_order(lay, rows) -> np.ndarray:
     number[inner] = np.arange(inner.size)
     r, c = number[row_leaf[local]], number[leaf_of[col[local]]]
     keep = (r >= 0) & (c >= 0) & (r != c)
-    G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int8), (r[keep], c[keep])), shape=(inner.size,) * 2)
+    G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int32), (r[keep], c[keep])), shape=(inner.size,) * 2)
+    G.data[:] = 1                            # duplicates summed: an edge, however many couplings
     G = (G + G.T).tocsr()
     return np.concatenate([inner[nested_dissection(G)], np.flatnonzero(interface)])
 

@@ -101,13 +101,16 @@ class TwoLevelPC:
             if not (new_space and self.space.shared):        # else the space borrows the factor first
                 self.leafsolver.numeric(data)
         with phase("HTPCoarseSpace", T, "coarse_space"):
-            if new_space:
-                self.space.compute(self.d_values, self.ops.o_values, self.ops.o_perm_rows, self._seeds(rows, density))
-            else:
-                self.space.age += 1
-        if new_space and self.space.shared:
-            with phase("HTPLeafFactor", T, "leaf"):
-                self.leafsolver.numeric(data)
+            try:
+                if new_space:
+                    self.space.compute(self.d_values, self.ops.o_values, self.ops.o_perm_rows,
+                                       self._seeds(rows, density))
+                else:
+                    self.space.age += 1
+            finally:
+                if new_space and self.space.shared:           # the borrowed factor gets D back, also on errors
+                    with phase("HTPLeafFactor", T, "leaf"):
+                        self.leafsolver.numeric(data)
         with phase("HTPProducts", T, "products"):
             self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):

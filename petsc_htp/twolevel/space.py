@@ -97,6 +97,9 @@ class CoarseSpace:
             self.S_factor.setUp()
             self.failed = self.S_factor.getFailedReason()
             self._fill(self.seeds if seeds is None else seeds, diag)
+            if self.failed != PETSc.PC.FailedReason.NOERROR:      # ICC/ILU keep a failure through later setups:
+                self.S_factor.reset()                             # a new factor for the next values (D's too)
+                self.S_factor.setOperators(self.S, self.S)
         finally:
             if self.shared:
                 d_values[lay.d_diag] = d_diagonal
