@@ -33,7 +33,6 @@ def leaf_order(lay, rows) -> np.ndarray:
     r, c = number[row_leaf[local]], number[leaf_of[col[local]]]
     keep = (r >= 0) & (c >= 0) & (r != c)
     G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int32), (r[keep], c[keep])), shape=(inner.size,) * 2)
-    G.data[:] = 1                            # duplicates summed: an edge, however many couplings
     G = (G + G.T).tocsr()
     return np.concatenate([inner[nested_dissection(G)], np.flatnonzero(interface)])
 
