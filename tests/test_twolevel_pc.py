@@ -567,3 +567,33 @@ def test_a_failed_neumann_factor_is_reported_and_the_next_values_recover(frames,
     x.setRandom()
     pc.apply(x, y)
     assert setup.check() == "" and np.isfinite(y.getArray()).all()
+
+
+@pytest.mark.parametrize("opts", [{}, {"htp_coarse_rank": "3", "htp_coarse_tol": "0.05"}, {"htp_leaf_pc_type": "icc"}])
+def test_leaf_blocks_in_a_order_give_the_same_preconditioner(monkeypatch, opts):
+    """Aggregation leaves keep A's order of their rows: D goes in A's order (no gather, no scatter) and M x is the
+    one the leaves' order gives (exact and ICC(0) leaf factors, extras by their Ritz values); a matrix numbered
+    at random keeps the leaves' order."""
+    from petsc_htp.scenes import foreign
+    from petsc_htp.twolevel import leaflayout
+
+    A, b = foreign.dmda(2, 64)
+    mat = petsc_mat(A, null=False)
+    x = mat.createVecLeft()
+    x.setArray(np.random.default_rng(0).standard_normal(A.shape[0]))
+    applied = {}
+    for span in (leaflayout.A_ORDER_SPAN, 0):
+        monkeypatch.setattr(leaflayout, "A_ORDER_SPAN", span)
+        reason, its, relres, ksp = solve(mat, b, **opts)
+        setup = ksp.getPC().getPythonContext().setup
+        y = x.duplicate()
+        ksp.getPC().apply(x, y)
+        applied[span] = (setup.st.lay.d_in_a_order, its, y.getArray().copy())
+        assert reason > 0 and relres <= 1.01e-8
+    (ordered, its0, y0), (leafwise, its1, y1) = applied.values()
+    assert ordered and not leafwise and its0 == its1
+    np.testing.assert_allclose(y0, y1, rtol=1e-10, atol=1e-12 * np.abs(y1).max())
+    perm = np.random.default_rng(1).permutation(A.shape[0])
+    monkeypatch.setattr(leaflayout, "A_ORDER_SPAN", 64)
+    reason, _, relres, ksp = solve(petsc_mat(A[perm][:, perm], null=False), b[perm])
+    assert not ksp.getPC().getPythonContext().setup.st.lay.d_in_a_order and reason > 0 and relres <= 1.01e-8

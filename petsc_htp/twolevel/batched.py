@@ -134,7 +134,8 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
     at = lay.pos[lay.iperm]                                     # padded position of each of A's rows
     pr, pc = at[lay.entry_row], at[A.indices]
     order = np.lexsort((pc, pr))
-    d_rows = np.repeat(np.arange(n), np.diff(lay.d_indptr))     # leaves' order
+    d_rows = lay.d_leaf_row[np.repeat(np.arange(n), np.diff(lay.d_indptr))]     # leaves' order
+    d_cols = lay.d_leaf_row[lay.d_indices]
     n_comp, comp_of_row = nullspace.graph_components(A)
     comp_of_piece = np.zeros(lay.pieces.n_pieces, dtype=np.int64)
     comp_of_piece[lay.pieces.label[lay.iperm]] = comp_of_row
@@ -145,7 +146,7 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
         leaves=leaves, lay=lay, device=device, nnz=A.nnz, pos=as_t(lay.pos), mask=as_t(mask, DTYPE).view(K, L),
         crow=as_t(np.concatenate(([0], np.cumsum(np.bincount(pr, minlength=K * L))))),
         col=as_t(pc[order]), csr_src=as_t(order),
-        in_dst=as_t(lay.pos[d_rows] * L + lay.pos[lay.d_indices] % L), diag_dst=as_t(lay.pos * L + lay.pos % L),
+        in_dst=as_t(lay.pos[d_rows] * L + lay.pos[d_cols] % L), diag_dst=as_t(lay.pos * L + lay.pos % L),
         off_src=as_t(lay.o_src), off_row=as_t(at[lay.o_rows]), off_col=as_t(at[A.indices[lay.o_src]]),
         n_comp=n_comp, comp_of_row=comp_of_row, comp_of_piece=comp_of_piece,
         constants=torch.as_tensor(coarsespace.piece_constants(lay)).to(device), analysis_ms=_ms(t0, device))

@@ -125,8 +125,8 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
         (n, q) -> S^-1 (n, q).
     extra : int
         How many of the seeds (the last ones) are extras, kept by their Ritz value.
-    S : scipy.sparse.csr_matrix, optional
-        S in the leaves' order (needed with ``extra``).
+    S : callable, optional
+        (n, k) -> S (n, k) (needed with ``extra``).
     diag : numpy.ndarray (n,), optional
         S's diagonal (needed with ``extra``).
     tol : float
@@ -150,7 +150,7 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
         if extra:
             rest = _orthonormal(without(without(Y[:, :, q:], constants), blocks[0]), _size(Y[:, :, q:]))
             SX = np.zeros((K * L, extra))
-            SX[lay.pos] = S @ rest.reshape(K * L, -1)[lay.pos]
+            SX[lay.pos] = S(rest.reshape(K * L, -1)[lay.pos])
             theta, U = np.linalg.eigh(rest.mT @ SX.reshape(K, L, -1))
             rest = rest @ U
             scale = np.bincount(lay.leaf, np.abs(diag), minlength=K) / lay.leaves.sizes

@@ -2,8 +2,8 @@
 
     M = Q + (I - QA) B (I - AQ)  (balanced)   or   M = Q + (I - QA) B  (deflated),   Q = W (W^T A W)^-1 W^T
 
-B = D^-1 solves the leaves (D, A's leaf blocks in the leaves' order, one sparse matrix and one PETSc factor per
-rank), W holds every leaf's coarse vectors and E = W^T A W is solved by the coarse solver. The parts, each one job:
+B = D^-1 solves the leaves (D, A's leaf blocks, one sparse matrix and one PETSc factor per rank), W holds every
+leaf's coarse vectors and E = W^T A W is solved by the coarse solver. The parts, each one job:
 
 - :mod:`.structure`: the analysis of a pattern (leaves, components, W's columns), numpy;
 - :mod:`.leafsolvers`: B, the leaf factor (``<prefix>leaf_``);
@@ -77,7 +77,7 @@ class TwoLevelPC:
             if st.cfg.overlap:
                 self.leafsolver = OverlappingLeaves(lay, rows, st.cfg.overlap, factor)
             else:
-                self.leafsolver = ExactLeaves(lay, self.d_values, factor, lay.identity and st.coll.size == 1)
+                self.leafsolver = ExactLeaves(lay, self.d_values, factor, lay.d_in_a_order and st.coll.size == 1)
             self.space = CoarseSpace(st, factor, None if st.cfg.overlap else self.leafsolver.f)
             self.ops = Operators(mat, rows, st)
             self.coarse = CoarseSolve(st, st.cfg.solver, prefix + "cs_")

@@ -3,8 +3,9 @@
 Both keep one sparse matrix and one PETSc factor per rank whose pattern is fixed by the analysis, so a
 frame's values cost one numeric factorisation.
 
-- :class:`ExactLeaves`: B = D^-1, D the leaf blocks in the leaves' row order (each leaf contiguous, the
-  natural ordering factors it without fill between leaves). D B = I, which the deflated form uses.
+- :class:`ExactLeaves`: B = D^-1, D the leaf blocks in A's row order or the leaves'
+  (:mod:`.leaflayout`; either way the natural ordering factors it without fill between leaves). D B = I,
+  which the deflated form uses.
 - :class:`OverlappingLeaves`: additive Schwarz, B = sum_k R_k^T A_k^-1 R_k over each leaf grown by
   ``overlap`` layers of its neighbours among the rank's rows; the grown blocks sit side by side in one
   matrix with one factor. Symmetric, but D B != I: the forms then go through A W.
@@ -28,7 +29,8 @@ def seqaij(indptr, indices, values, n, m=None) -> PETSc.Mat:
 
 
 class _Factored:
-    """A SeqAIJ of fixed pattern with its factor, applied to rows gathered from and scattered to A's layout."""
+    """A SeqAIJ of fixed pattern with its factor, applied to rows ``gather``-ed from A's local rows (None: they
+    are A's local rows)."""
 
     def __init__(self, indptr, indices, values, gather, make_pc):
         n = len(indptr) - 1
@@ -46,7 +48,10 @@ class _Factored:
 
     def solve_rows(self, x):
         """The factor's solve of the gathered rows of the local array ``x`` (a view of a work array)."""
-        np.take(x, self.gather, out=self.xp)
+        if self.gather is None:
+            np.copyto(self.xp, x)
+        else:
+            np.take(x, self.gather, out=self.xp)
         self.pc.apply(self.xs, self.vs)
         return self.vp
 
@@ -66,12 +71,12 @@ class ExactLeaves:
     make_pc : callable
         Mat -> PC (the factor, configured by the caller's options).
     direct : bool
-        The leaves are A's own rows in order on one rank: B applies to the KSP's vectors as they are.
+        D is in A's order on one rank: B applies to the KSP's vectors as they are.
     """
 
     def __init__(self, lay, values, make_pc, direct):
         self.lay, self.direct = lay, direct
-        self.f = _Factored(lay.d_indptr, lay.d_indices, values, lay.perm, make_pc)
+        self.f = _Factored(lay.d_indptr, lay.d_indices, values, None if lay.d_in_a_order else lay.perm, make_pc)
         self.exact = self.f.pc.getType() in EXACT      # an incomplete factor (-htp_leaf_pc_type icc): D B != I
 
     @property
@@ -87,6 +92,8 @@ class ExactLeaves:
         """v = B x (Vecs laid out like A's rows)."""
         if self.direct:
             self.f.pc.apply(x, v)
+        elif self.lay.d_in_a_order:
+            v.array_w[:] = self.f.solve_rows(x.array_r)
         else:
             np.take(self.f.solve_rows(x.array_r), self.lay.iperm, out=v.array_w)
 

@@ -53,15 +53,24 @@ class Pieces:
         return int(self.size.size)
 
 
-def find_pieces(indptr, indices, leaf_of_row, n_leaves) -> Pieces:
-    """Connected parts of each leaf from the leaf blocks' CSR structure (rows in the leaves' order).
+def find_pieces(indptr, indices, leaf_of_row, n_leaves, order=None) -> Pieces:
+    """Connected parts of each leaf from the leaf blocks' CSR structure.
 
-    ``indptr``/``indices`` hold only entries between rows of the same leaf, each leaf's rows contiguous.
+    ``indptr``/``indices`` hold only entries between rows of the same leaf: rows in the leaves' order (each leaf's
+    rows contiguous), or in any order with ``order``, the structure's row of each row in the leaves' order.
+    ``leaf_of_row`` is in the leaves' order.
     """
     n = leaf_of_row.size
     graph = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
     n_pieces, label = connected_components(graph, directed=False)
-    # connected_components numbers parts by their lowest row, so pieces run leaf by leaf
+    # connected_components numbers parts by their lowest row, so in the leaves' order pieces run leaf by leaf
+    if order is not None:                       # else number them by their first row in the leaves' order
+        label = label[order]
+        first = np.empty(n_pieces, dtype=np.int64)
+        first[label[::-1]] = np.arange(n - 1, -1, -1)
+        renumber = np.empty(n_pieces, dtype=np.int64)
+        renumber[np.argsort(first)] = np.arange(n_pieces)
+        label = renumber[label]
     leaf = np.zeros(n_pieces, dtype=np.int64)
     leaf[label] = leaf_of_row
     count = np.bincount(leaf, minlength=n_leaves)

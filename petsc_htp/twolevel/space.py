@@ -116,8 +116,8 @@ class CoarseSpace:
                 self.values[self.lead_mask] = y[st.w_p[self.lead_mask]]
                 self.kept = st.ncols - ((st.ncols > 0) & ~ok)
             return
-        P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.S_csr, diag,
-                                         st.cfg.tol)
+        P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.apply_neumann,
+                                         diag, st.cfg.tol)
         np.take(P.reshape(-1), self.src, out=self.values)
 
     def finish(self) -> np.ndarray:
@@ -137,8 +137,16 @@ class CoarseSpace:
             self._zeroed_key, self._zeroed_at = key, np.flatnonzero(gone[self.st.w_local_col])
         return self._zeroed_at
 
+    def apply_neumann(self, X) -> np.ndarray:
+        """S X for an (n, q) array (rows in the leaves' order)."""
+        lay = self.st.lay
+        if not lay.d_in_a_order:
+            return self.S_csr @ X
+        return (self.S_csr @ X[lay.iperm])[lay.perm]
+
     def solve_neumann(self, X) -> np.ndarray:
-        """S^-1 X for an (n, q) array, one multi-vector triangular solve (a view of a work array)."""
+        """S^-1 X for an (n, q) array (rows in the leaves' order), one multi-vector triangular solve (a view of a
+        work array where S's rows are in that order)."""
         if self._dense is None or self._dense[0].shape != X.shape:
             self._free_dense()
             rhs = np.empty(X.shape, order="F")
@@ -146,10 +154,11 @@ class CoarseSpace:
             self._dense = (rhs, out, PETSc.Mat().createDense(X.shape, array=rhs, comm=PETSc.COMM_SELF),
                            PETSc.Mat().createDense(X.shape, array=out, comm=PETSc.COMM_SELF))
         rhs, out, R, Y = self._dense
-        np.copyto(rhs, X)
+        lay = self.st.lay
+        np.copyto(rhs, X[lay.iperm] if lay.d_in_a_order else X)
         R.stateIncrease()
         self.S_factor.getFactorMatrix().matSolve(R, Y)
-        return out
+        return out[lay.perm] if lay.d_in_a_order else out
 
     def _free_dense(self):
         if self._dense is not None:

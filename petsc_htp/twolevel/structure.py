@@ -59,7 +59,7 @@ class Structure:
             r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
             off = r != lay.d_indices
             self._weak_src, self._weak_row, self._weak_col = lay.d_src[off], r[off], lay.d_indices[off].astype(np.int32)
-            self._diag_src = lay.d_src[lay.d_diag]
+            self._diag_src = lay.d_src[lay.d_diag[lay.d_leaf_row]]          # by D's rows
             self.weak_made = self._weak_inside(rows.data)
 
     def resolved(self, cfg):
