@@ -107,9 +107,9 @@ def test_graph_shape_follows_nonzeros_only_and_finds_rare_coupled_rows():
     assert shape.dim == 2 and not np.isnan(shape.growth), shape.describe()
 
 
-def test_both_ball_searches_give_the_same_balls():
-    """The breadth-first search and the sparse products grow the same balls, stored zeros coupling nothing (the
-    search is picked by cost only)."""
+def test_every_ball_search_gives_the_same_balls():
+    """The breadth-first search, the sparse products and the shortest paths grow the same balls, stored zeros
+    coupling nothing (the search is picked by cost only)."""
     from petsc_htp.twolevel import graphshape as gs
 
     A, _ = foreign.dmda(3, 12)
@@ -120,6 +120,7 @@ def test_both_ball_searches_give_the_same_balls():
         seeds = gs._coupled_seeds(M, gs.SAMPLES, np.random.default_rng(1)).astype(np.int64)
         bfs, products = gs._ball_sizes(M, seeds, gs.RADIUS), gs._ball_sizes_by_products(M, seeds, gs.RADIUS)
         np.testing.assert_array_equal(bfs, products)
+        np.testing.assert_array_equal(bfs, gs._ball_sizes_by_paths(M, seeds, gs.RADIUS))
         assert (bfs[1] > bfs[0]).all()
     assert gs._by_products(meshes.p1_laplacian(3, 8000)[0].tocsr()) and not gs._by_products(foreign.dmda(2, 256)[0])
 
