@@ -1,6 +1,7 @@
 """Matrices from other programs: aggregation leaves, decoupled rows, what the graph shows, small matrices solved
 directly, leaves made anew when the couplings move, and the benchmark's foreign study."""
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,8 @@ from petsc_htp.twolevel import sizing
 from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, aggregates, decoupled_rows
 from petsc_htp.twolevel.graphshape import graph_shape
 from petsc_htp.twolevel.leaves import choose_leaves
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "dmda_poisson.py"
 
 _PREFIXES = itertools.count()
 
@@ -239,23 +242,28 @@ def test_foreign_study_quick(tmp_path):
     assert cols[7].endswith("amgcl_ce500"), first
 
 
+HTPPC_FLAGS = ("-ksp_type", "cg", "-ksp_rtol", "1e-8", "-ksp_norm_type", "unpreconditioned", "-pc_type", "python",
+               "-pc_python_type", "petsc_htp.HTPPC", "-ksp_view")
+
+
+def _mpirun(ranks, script, *args):
+    """``mpiexec -n ranks python script args``: the finished process (stdout, stderr as text)."""
+    import shutil
+    import subprocess
+    import sys
+
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin:/usr/local/bin")
+    assert mpiexec, "mpiexec not found (the Makefile installs MPICH)"
+    return subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(script), *args], capture_output=True,
+                          text=True, timeout=300)
+
+
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
     """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC chosen by options only, on 1 and 2 ranks
     (each rank aggregates its own rows and orders its own leaves' coarse columns by METIS, those coupled to the
     other rank last: 360^2 has a coarse operator of about 13 700 rows)."""
-    import shutil
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    script = Path(__file__).resolve().parent.parent / "examples" / "dmda_poisson.py"
-    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin:/usr/local/bin")
-    assert mpiexec, "mpiexec not found (the Makefile installs MPICH)"
-    proc = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(script), "-n", "360", "-ksp_type", "cg",
-                           "-ksp_rtol", "1e-8", "-ksp_norm_type", "unpreconditioned", "-pc_type", "python",
-                           "-pc_python_type", "petsc_htp.HTPPC", "-ksp_view"], capture_output=True, text=True,
-                          timeout=300)
+    proc = _mpirun(ranks, EXAMPLE, "-n", "360", *HTPPC_FLAGS)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert f"{ranks} MPI process" in proc.stdout
     its = int(proc.stdout.split("iterations:")[1].split()[0])
@@ -263,6 +271,19 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
     assert its <= 40 and relres <= 1.01e-8 and "leaves: aggregation" in proc.stdout and "graph: 2-D" in proc.stdout
     assert "coarse columns in METIS's nested-dissection order" in proc.stdout
     assert ("LU on each of the 2 ranks (redundant)" in proc.stdout) == (ranks == 2), proc.stdout
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ranks):
+    """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (the same operator as the
+    balls' 7-point stencil in natural order, checked by a product on every rank: tests/dmda3d_case.py), and HTPPC
+    solves it from the command line, the graph read as 3-D."""
+    proc = _mpirun(ranks, Path(__file__).parent / "dmda3d_case.py")
+    assert proc.returncode == 0 and proc.stdout.count("same operator") == ranks, proc.stdout + proc.stderr
+    proc = _mpirun(ranks, EXAMPLE, "-dim", "3", "-n", "24", *HTPPC_FLAGS)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert relres <= 1.01e-8 and "graph: 3-D" in proc.stdout and f"{ranks} MPI process" in proc.stdout
 
 
 def test_amg_coarse_solve_of_aggregation_leaves_is_an_inner_krylov_solve():

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .gallery import inclusions
+from .gallery import balls, inclusions
 
 
 def _csr(rows, cols, vals, n) -> sp.csr_matrix:
@@ -34,13 +34,7 @@ def _field(shape, contrast, seed) -> np.ndarray:
     """Cell conductivity on a grid of ``shape`` (2-D or 3-D): 1 with random balls of ``contrast``."""
     if len(shape) == 2:
         return inclusions(shape[1], shape[0], contrast, seed)
-    rng = np.random.default_rng(seed)
-    grids = np.meshgrid(*[(np.arange(s) + 0.5) / s for s in shape], indexing="ij")
-    k = np.ones(shape)
-    for _ in range(24):
-        c, r = rng.random(3), rng.uniform(0.05, 0.15)
-        k[sum((g - ci) ** 2 for g, ci in zip(grids, c)) <= r * r] = contrast
-    return k
+    return balls(shape, contrast, seed)
 
 
 def _faces(k):

@@ -23,17 +23,34 @@ def inclusions(nx, ny, contrast=1000.0, seed=0, count=24) -> np.ndarray:
     return k
 
 
+def balls(shape, contrast=1000.0, seed=0, count=24) -> np.ndarray:
+    """Cell conductivity on a 3-D grid of ``shape`` (nz, ny, nx): 1, and ``contrast`` inside ``count`` random balls
+    (radius 0.05-0.15)."""
+    rng = np.random.default_rng(seed)
+    grids = np.meshgrid(*[(np.arange(s) + 0.5) / s for s in shape], indexing="ij")
+    k = np.ones(shape)
+    for _ in range(count):
+        c, r = rng.random(3), rng.uniform(0.05, 0.15)
+        k[sum((g - ci) ** 2 for g, ci in zip(grids, c)) <= r * r] = contrast
+    return k
+
+
 def face_weights(k) -> tuple:
-    """Harmonic-mean conductances of the interior x-faces (ny, nx-1) and y-faces (ny-1, nx), and the boundary
-    conductance of every cell (ny, nx): twice its own conductivity per Dirichlet face it touches."""
-    wx = 2 * k[:, 1:] * k[:, :-1] / (k[:, 1:] + k[:, :-1])
-    wy = 2 * k[1:, :] * k[:-1, :] / (k[1:, :] + k[:-1, :])
-    edge = np.zeros_like(k)
-    edge[:, 0] += 2 * k[:, 0]
-    edge[:, -1] += 2 * k[:, -1]
-    edge[0, :] += 2 * k[0, :]
-    edge[-1, :] += 2 * k[-1, :]
-    return wx, wy, edge
+    """Harmonic-mean conductances of the interior faces along x, y (and z) of a cell conductivity ``k`` (ny, nx)
+    or (nz, ny, nx), each one shorter along its axis, and the boundary conductance of every cell: twice its own
+    conductivity per Dirichlet face it touches."""
+    weights, edge = [], np.zeros_like(k)
+    for axis in range(k.ndim - 1, -1, -1):
+        lo, hi = [slice(None)] * k.ndim, [slice(None)] * k.ndim
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        a, c = k[tuple(lo)], k[tuple(hi)]
+        weights.append(2 * a * c / (a + c))
+    for axis in range(k.ndim - 1, -1, -1):
+        for end in (0, -1):
+            face = [slice(None)] * k.ndim
+            face[axis] = end
+            edge[tuple(face)] += 2 * k[tuple(face)]
+    return (*weights, edge)
 
 
 def variable_poisson(nx, ny=None, contrast=1000.0, seed=0) -> tuple:
