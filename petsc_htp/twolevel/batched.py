@@ -238,7 +238,7 @@ def _null_rule(analysis, A):
 
 
 def _leaf_values(analysis, A, ground):
-    """D's values (leaves' order) with the grounded pieces' first diagonal entry raised."""
+    """D's values (in ``lay.d_src``'s order) with the grounded pieces' first diagonal entry raised."""
     lay = analysis.lay
     values = A.data[lay.d_src].astype(np.float64)
     if ground.any():

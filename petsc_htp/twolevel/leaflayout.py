@@ -34,7 +34,7 @@ class LeafLayout:
     """Per-pattern index maps of one rank's rows (see the module docstring).
 
     Rows come in two orders: A's (the rank's local rows) and the leaves' (``perm``: leaf-order row p
-    is A's local row ``perm[p]``). D lives in the leaves' order, O in A's.
+    is A's local row ``perm[p]``). D lives in A's order or the leaves' (``d_in_a_order``), O in A's.
 
     Attributes
     ----------
