@@ -534,6 +534,22 @@ def test_methods_take_turns_frame_by_frame(env):
     assert all(r["ok"] for r in rows)
 
 
+def test_repeated_single_solves_keep_the_median_row(env):
+    """With ``repeats`` each method solves a problem that many times in a row; the row of the median total time is
+    kept, a failed solve wins over the median."""
+    from petsc_htp.bench.cases import table_problems
+    from petsc_htp.bench.methods import resolve_methods
+    from petsc_htp.bench.runner import _median, run_methods
+
+    rows = run_methods(resolve_methods(["cg_jacobi", "cg_icc"]), table_problems([256], 1), warmup=False,
+                       repeats=lambda problem: 3)
+    assert [(r["method"], r["repeats"], r["ok"]) for r in rows] == [("cg_jacobi", 3, True), ("cg_icc", 3, True)]
+    made = [{"ok": True, "total_ms": t} for t in (3.0, 1.0, 2.0)]
+    assert _median(made)["total_ms"] == 2.0 and _median(made)["repeats"] == 3
+    assert _median(made + [{"ok": False, "total_ms": None}])["ok"] is False
+    assert "repeats" not in _median(made[:1])
+
+
 def test_gamg_sweep_points_load_the_default_file_with_threshold_and_aggressive_levels_set():
     """``gamg_t<threshold>_a<levels>`` is cg_gamg_default.opts with the two GAMG knobs set under its own prefix;
     the families and their defaults are read off the names."""

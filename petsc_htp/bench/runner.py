@@ -202,13 +202,16 @@ def peak_rss_mb() -> float:
     return comm.tompi4py().allreduce(mine, op=MPI.MAX)
 
 
-def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
+def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=lambda: None,
+                repeats=lambda problem: 1) -> list:
     """Solve every problem with every method; one row each, frame by frame.
 
     Each frame is solved by all methods in turn, so a machine whose speed drifts during the
     run slows every method alike. The options stay loaded for the whole list; with ``warmup``
     the first problem of every N is solved once more by each method beforehand and that solve
-    is discarded. ``tick()`` is called after every recorded solve.
+    is discarded. A problem is solved ``repeats(problem)`` times by each method in a row and the
+    row of the median setup + solve time kept (a millisecond solve varies by its own size from one
+    run to the next). ``tick()`` is called after every recorded row.
     """
     loaded, failed = [], {}
     try:
@@ -229,12 +232,20 @@ def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=la
                     warmed.add((method.name, problem.n))
                     solve_method(method, method.prefix, problem, False)
                 if method.name not in failed:
-                    rows.append(solve_method(method, method.prefix, problem, monitor))
+                    rows.append(_median([solve_method(method, method.prefix, problem, monitor)
+                                         for _ in range(repeats(problem))]))
                 tick()
     finally:
         for entry in reversed(loaded):
             entry.__exit__(None, None, None)
     return rows
+
+
+def _median(rows) -> dict:
+    """The row of the median total time (the first failed one, if any failed); ``repeats`` says how many ran."""
+    bad = [r for r in rows if not r.get("ok", True)]
+    pick = bad[0] if bad else sorted(rows, key=lambda r: r.get("total_ms", 0.0))[(len(rows) - 1) // 2]
+    return {**pick, "repeats": len(rows)} if len(rows) > 1 else pick
 
 
 def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:

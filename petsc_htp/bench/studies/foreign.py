@@ -1,7 +1,8 @@
 """Matrices from other programs (:mod:`petsc_htp.bench.foreigncases`): single solves and sequences.
 
 Single-solve mode: each case's first frame, a fresh Mat (nothing attached but the null space a Neumann matrix
-has) and a fresh KSP, the whole setup in the time, after one warm-up solve per method and N; and the same solve
+has) and a fresh KSP, the whole setup in the time, after one warm-up solve per method and N (under
+:data:`SMALL_ROWS` rows the median of ``--foreign-repeats`` such solves); and the same solve
 as the first call of a fresh process (:mod:`petsc_htp.bench.fresh`), which also gives each method's own peak
 memory. Sequence mode: later frames of the same case
 through one persistent KSP per PETSc method (new values in the same Mat; for the free surface, whose pattern
@@ -22,6 +23,9 @@ from .base import Size, Study, solve_all, tag
 CHART = "foreign.png"
 SCALES = Size("foreign_scales", [65536], [2048], "N of the foreign study")
 FRAMES = Size("foreign_frames", 4, 2, "sequence frames per case of the foreign study (0: single solves only)")
+REPEATS = Size("foreign_repeats", 5, 1, "single solves of every method on a matrix under SMALL_ROWS rows, one after "
+               "the other (the median by setup + solve is reported; one above)")
+SMALL_ROWS = 20000      # below this a single solve takes milliseconds and varies by its own size between runs
 CASE_NAMES = Size("foreign_cases", list(CASES), ["dmda2d", "dmda3d", "free_surface", "fem_tri", "neumann"],
                   "cases of the foreign study", kind=str)
 
@@ -208,12 +212,12 @@ class Foreign(Study):
             "anisotropy, P1 FEM on triangles and tets, log-normal permeability, Neumann walls, PyAMG's examples): "
             "single solves with fresh KSPs, as a fresh process's first call (with its peak memory), and sequences "
             "with persistent KSPs")
-    sizes = (SCALES, FRAMES, CASE_NAMES)
+    sizes = (SCALES, FRAMES, REPEATS, CASE_NAMES)
     readme_links = ((CHART, "foreign matrices"),)
 
     def meta(self, settings):
         return {"foreign": {"scales": settings["foreign_scales"], "frames": settings["foreign_frames"],
-                            "cases": settings["foreign_cases"]}}
+                            "cases": settings["foreign_cases"], "repeats": settings["foreign_repeats"]}}
 
     def expected_solves(self, ctx):
         s = ctx.settings
@@ -225,7 +229,9 @@ class Foreign(Study):
         bad = [c for c in s["foreign_cases"] if c not in CASES]
         if bad:
             raise ValueError(f"unknown foreign case(s) {', '.join(bad)}; the cases are {', '.join(CASES)}")
-        single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign")
+        reps = s["foreign_repeats"]
+        single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign",
+                           repeats=lambda p: reps if p.n < SMALL_ROWS else 1)
         for row in single:
             row.setdefault("mode", "single")
         seq = sequence(ctx.methods, s["foreign_cases"], s["foreign_scales"], s["foreign_frames"], ctx.extra, tick) \
@@ -239,7 +245,8 @@ class Foreign(Study):
             "## Matrices from other programs",
             "Single solves: each case's matrix handed over bare (a Neumann matrix with its null space), a fresh "
             "Mat and KSP, setup (analysis included) + solve ms and median iterations in parentheses, after one "
-            "warm-up solve per method and N.",
+            f"warm-up solve per method and N; under {SMALL_ROWS} rows the median of "
+            f"{meta.get('repeats', 1)} single solves in a row per method.",
             table(res, "single"),
             "Each baseline family at its default and its best swept setting, single solves (ms, iterations):",
             best_table(_mode(res, "single"), res.methods("foreign")),
