@@ -274,6 +274,25 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
+def test_a_large_2d_coarse_operator_on_two_ranks_gets_a_distributed_v_cycle_in_the_balanced_form(ranks):
+    """In 2-D on several ranks a coarse operator above sizing.COARSE_REDUNDANT_MAX rows (440^2: about 20 000) is
+    not factored on every rank: one GAMG V-cycle, SPD, taken by the balanced form, which any SPD coarse solve keeps
+    SPD (CG converges to the true residual's tolerance); on one rank the LU and the deflated form stay."""
+    from petsc_htp.twolevel import sizing
+
+    assert sizing.coarse_solver(2, 20000, 2) == "gamg" and sizing.coarse_solver(2, 20000, 1) == "lu"
+    assert sizing.coarse_solver(2, 16000, 2) == "lu" and not sizing.coarse_exact(2, "gamg")
+    assert sizing.coarse_exact(3, "gamg") and sizing.coarse_exact(2, "lu")
+    proc = _mpirun(ranks, EXAMPLE, "-n", "440", *HTPPC_FLAGS)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    its = int(proc.stdout.split("iterations:")[1].split()[0])
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert relres <= 1.01e-8 and its <= (50 if ranks == 2 else 40), proc.stdout
+    assert ("one GAMG V-cycle" in proc.stdout and "form: balanced" in proc.stdout) == (ranks == 2), proc.stdout
+    assert ("form: deflated" in proc.stdout) == (ranks == 1), proc.stdout
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ranks):
     """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (the same operator as the
     balls' 7-point stencil in natural order, checked by a product on every rank: tests/dmda3d_case.py), and HTPPC

@@ -18,8 +18,9 @@ class CoarseSolve:
 
     def __init__(self, st, solver, prefix):
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
-        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m)
+        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size)
         self.chosen = solver == "auto"
+        self.exact = sizing.coarse_exact(st.dim, self.solver)      # else the balanced form (forms.Forms)
         self.g = self.c = self.c2 = None
 
     def setup(self, ops):
@@ -62,9 +63,12 @@ class CoarseSolve:
         """The coarse solver, and why it was chosen."""
         why = ""
         if self.chosen:
-            limit = sizing.COARSE_DIRECT_MAX[self.st.dim]
+            st = self.st
+            limit = sizing.COARSE_DIRECT_MAX[st.dim]
             direct = f"direct up to {limit}" if limit else "always direct"
-            why = f" (by the problem: {self.st.m} rows; {direct} in {self.st.dim}-D)"
+            if st.dim == 2 and st.coll.size > 1:
+                direct = f"direct up to {sizing.COARSE_REDUNDANT_MAX} on several ranks"
+            why = f" (by the problem: {st.m} rows; {direct} in {st.dim}-D)"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         return f"coarse solve: {inner.text(self.pc)}{why}{order}; options -{self.prefix}*"
 

@@ -24,13 +24,13 @@ class Forms:
 
     def __init__(self, mat, ops, leafsolver, coarse, form):
         self.mat, self.ops, self.B, self.coarse, self.configured = mat, ops, leafsolver, coarse, form
-        self.auto, self.forced = "deflated", None
+        self.auto, self.forced = "deflated" if coarse.exact else "balanced", None
         self.v, self.t = mat.createVecLeft(), mat.createVecLeft()
         self._leaf_ev, self._coarse_ev = event("HTPLeafSolve"), event("HTPCoarseSolve")
 
     def form(self, ksp_type=None) -> str:
         """The form in use: forced, configured, or for 'auto' the one the last :meth:`presolve` chose (deflated
-        unless ``ksp_type`` needs a symmetric M)."""
+        unless ``ksp_type`` needs a symmetric M or the coarse solve is one V-cycle)."""
         if self.forced or self.configured != "auto":
             return self.forced or self.configured
         return "balanced" if ksp_type in SYMMETRIC_KSPS else self.auto
@@ -94,10 +94,12 @@ class Forms:
     def presolve(self, ksp, b, x, stale=False):
         """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
         this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP needs a symmetric
-        M or the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A)."""
+        M, the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A) or the coarse
+        solve is not exact (:func:`.sizing.coarse_exact`)."""
         kind = ksp.getType()
         if self.configured == "auto":
-            self.auto = "balanced" if kind in SYMMETRIC_KSPS or stale else "deflated"
+            inexact = kind in SYMMETRIC_KSPS or stale or not self.coarse.exact
+            self.auto = "balanced" if inexact else "deflated"
             if self.needs_F():
                 self.ops.need_F()
         if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:

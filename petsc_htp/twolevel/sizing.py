@@ -13,7 +13,8 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
-is small. A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
+is small; in 2-D on several ranks, above :data:`COARSE_REDUNDANT_MAX` rows, one distributed GAMG V-cycle
+replaces the redundant LU, taken by the balanced form (:func:`coarse_solver`). A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
 (N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
 default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
 (sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
@@ -46,6 +47,8 @@ COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
 COARSE_DIRECT_MAX = {2: None, 3: 8192}      # coarse rows above which GAMG replaces the LU (None: never)
+COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
+COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "mg_levels_ksp_max_it": "3"}   # balanced form
 LEAF_AMG = {3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_KRYLOV_RTOL = "1e-3"                 # inner GCR on the coarse operator of aggregation leaves (coarse_options)
@@ -85,16 +88,31 @@ def leaf_factor(dim: int, kind: str) -> dict:
     return dict(EXACT_FACTOR if kind == "aggregation" else FACTOR[dim])
 
 
-def coarse_solver(dim: int, rows: int) -> str:
-    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions."""
+def coarse_solver(dim: int, rows: int, ranks: int = 1) -> str:
+    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks: in 2-D the
+    LU is redundant on several ranks (each factors the whole operator, and two ranks factoring at once slow each
+    other down), so there above :data:`COARSE_REDUNDANT_MAX` rows one distributed GAMG V-cycle replaces it, in the
+    balanced form (:func:`coarse_exact`). On two ranks, ``examples/dmda_poisson.py -n N -warmup``, setup + solve
+    ms against the LU: 512^2 593 against 612-659 (43 against 36 CG iterations), 768^2 1340-1376 against
+    1486-1633 (47 / 37), 1024^2 2882 against 4415 (49 / 39), 2048^2 14 036 against 25 235 (52 / 40); on one rank
+    the LU stays ahead at 1024^2 (4.6 against 5.2 s) and level at 2048^2 (28.0 against 26.0 s)."""
     limit = COARSE_DIRECT_MAX[dim]
-    return "gamg" if limit is not None and rows > limit else "lu"
+    if limit is not None and rows > limit:
+        return "gamg"
+    return "gamg" if dim == 2 and ranks > 1 and rows > COARSE_REDUNDANT_MAX else "lu"
 
 
-def metis_ordered(solver: str, dim: int, rows: int) -> bool:
+def coarse_exact(dim: int, solver: str) -> bool:
+    """Whether the coarse solve is exact enough for the deflated form: not a 2-D 'gamg' solve, one V-cycle on the
+    coarse operator, which only the balanced form (symmetric positive definite with any SPD coarse solve) takes
+    well; deflated, the same V-cycle costs 1.3-1.6x the CG iterations."""
+    return not (solver == "gamg" and dim == 2)
+
+
+def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
     it) of at least :data:`COARSE_METIS_ROWS` rows."""
-    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows) == "lu")
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks) == "lu")
     return lu and rows >= COARSE_METIS_ROWS
 
 
@@ -111,6 +129,8 @@ def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: 
     768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms. A coarse operator
     whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
     if solver == "gamg":
+        if dim == 2:
+            return dict(COARSE_AMG_2D)
         if kind == "aggregation":
             return {"pc_type": "ksp", "ksp_ksp_type": "gcr", "ksp_ksp_rtol": COARSE_KRYLOV_RTOL,
                     **{"ksp_" + k: v for k, v in COARSE_AMG.items()}}
