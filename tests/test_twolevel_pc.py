@@ -468,7 +468,9 @@ def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
 
 
 def test_coarse_solver_by_the_problem():
-    assert sizing.coarse_solver(2, 10 ** 7) == "lu"
+    top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D: the LU up to 200 000 coarse rows on one rank
+    assert (sizing.coarse_solver(2, top), sizing.coarse_solver(2, top + 1)) == ("lu", "gamg")
+    assert sizing.coarse_options(2, False, "gamg")["pc_gamg_aggressive_coarsening"] == "0"
     limit = sizing.COARSE_DIRECT_MAX[3]
     assert (sizing.coarse_solver(3, limit), sizing.coarse_solver(3, limit + 1)) == ("lu", "gamg")
     assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"

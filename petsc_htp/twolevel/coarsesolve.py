@@ -65,7 +65,7 @@ class CoarseSolve:
         if self.chosen:
             st = self.st
             limit = sizing.COARSE_DIRECT_MAX[st.dim]
-            direct = f"direct up to {limit}" if limit else "always direct"
+            direct = f"direct up to {limit}"
             if st.dim == 2 and st.coll.size > 1:
                 direct = f"direct up to {sizing.COARSE_REDUNDANT_MAX} on several ranks"
             why = f" (by the problem: {st.m} rows; {direct} in {st.dim}-D)"

@@ -13,8 +13,9 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
-is small; in 2-D on several ranks, above :data:`COARSE_REDUNDANT_MAX` rows, one distributed GAMG V-cycle
-replaces the redundant LU, taken by the balanced form (:func:`coarse_solver`). A 3-D coarse operator with more than :data:`COARSE_DIRECT_MAX` rows, whose LU grows superlinearly
+is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows, and on one above
+``COARSE_DIRECT_MAX[2]``, one distributed GAMG V-cycle replaces the LU, taken by the balanced form
+(:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows superlinearly
 (N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
 default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
 (sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
@@ -46,10 +47,11 @@ COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_fact
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
-COARSE_DIRECT_MAX = {2: None, 3: 8192}      # coarse rows above which GAMG replaces the LU (None: never)
+COARSE_DIRECT_MAX = {2: 200000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
-COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "mg_levels_ksp_max_it": "3"}   # balanced form
-LEAF_AMG = {3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
+COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.05", "pc_gamg_aggressive_coarsening": "0",
+                 "mg_levels_ksp_max_it": "3"}            # one V-cycle in the balanced form (coarse_solver)
+LEAF_AMG = {2: 32, 3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_KRYLOV_RTOL = "1e-3"                 # inner GCR on the coarse operator of aggregation leaves (coarse_options)
 
@@ -89,15 +91,16 @@ def leaf_factor(dim: int, kind: str) -> dict:
 
 
 def coarse_solver(dim: int, rows: int, ranks: int = 1) -> str:
-    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks: in 2-D the
-    LU is redundant on several ranks (each factors the whole operator, and two ranks factoring at once slow each
-    other down), so there above :data:`COARSE_REDUNDANT_MAX` rows one distributed GAMG V-cycle replaces it, in the
-    balanced form (:func:`coarse_exact`). On two ranks, ``examples/dmda_poisson.py -n N -warmup``, setup + solve
-    ms against the LU: 512^2 593 against 612-659 (43 against 36 CG iterations), 768^2 1340-1376 against
-    1486-1633 (47 / 37), 1024^2 2882 against 4415 (49 / 39), 2048^2 14 036 against 25 235 (52 / 40); on one rank
-    the LU stays ahead at 1024^2 (4.6 against 5.2 s) and level at 2048^2 (28.0 against 26.0 s)."""
+    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks. A 2-D LU
+    grows faster than its rows and is redundant on several ranks (each factors the whole operator, and two ranks
+    factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on several ranks, and
+    above ``COARSE_DIRECT_MAX[2]`` on one, one distributed GAMG V-cycle (:data:`COARSE_AMG_2D`) replaces it, in
+    the balanced form (:func:`coarse_exact`). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
+    iterations), V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
+    4 415 (39), 2048^2 15 077 (42) against 25 235 (40); one rank, 1024^2 (107 718 coarse rows) 4 513 (40)
+    against 4 376 (38), 2048^2 (430 000) 23 505 (42) against 27 563 (40)."""
     limit = COARSE_DIRECT_MAX[dim]
-    if limit is not None and rows > limit:
+    if rows > limit:
         return "gamg"
     return "gamg" if dim == 2 and ranks > 1 and rows > COARSE_REDUNDANT_MAX else "lu"
 
