@@ -1,8 +1,9 @@
 """The coarse solve E^-1 of the two-level method: a PETSc PC on the Galerkin operator under ``<prefix>cs_``.
 
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
-one rank), or in 3-D above :data:`.sizing.COARSE_DIRECT_MAX` rows one GAMG V-cycle (a GCR to a loose tolerance
-preconditioned by GAMG on aggregation leaves), whose near null space is W^T 1 (the constant's coarse coefficients;
+one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ranks above
+:data:`.sizing.COARSE_REDUNDANT_MAX`) one GAMG V-cycle, in the balanced form where it is not exact enough for the
+deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's coarse coefficients;
 with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's dmda3d case at 64^3).
 Any PETSc PC can replace it through its options.
 """
@@ -20,7 +21,7 @@ class CoarseSolve:
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
         self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size)
         self.chosen = solver == "auto"
-        self.exact = sizing.coarse_exact(st.dim, self.solver)      # else the balanced form (forms.Forms)
+        self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = None
 
     def setup(self, ops):

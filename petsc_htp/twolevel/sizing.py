@@ -53,7 +53,7 @@ COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.05", "pc_gamg_aggres
                  "mg_levels_ksp_max_it": "3"}            # one V-cycle in the balanced form (coarse_solver)
 LEAF_AMG = {2: 32, 3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
-COARSE_KRYLOV_RTOL = "1e-3"                 # inner GCR on the coarse operator of aggregation leaves (coarse_options)
+COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 
 
 def dimension(coords_dim, shape) -> int:
@@ -105,11 +105,13 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1) -> str:
     return "gamg" if dim == 2 and ranks > 1 and rows > COARSE_REDUNDANT_MAX else "lu"
 
 
-def coarse_exact(dim: int, solver: str) -> bool:
-    """Whether the coarse solve is exact enough for the deflated form: not a 2-D 'gamg' solve, one V-cycle on the
-    coarse operator, which only the balanced form (symmetric positive definite with any SPD coarse solve) takes
-    well; deflated, the same V-cycle costs 1.3-1.6x the CG iterations."""
-    return not (solver == "gamg" and dim == 2)
+def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
+    """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve in 2-D or on the coarse
+    operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form (symmetric positive
+    definite with any SPD coarse solve) takes well: deflated, the same V-cycle costs 1.3-3.4x the CG iterations
+    (a bare 3-D DMDA matrix at 300 763 rows: 133 against 39 with the coarse LU). Morton leaves' 3-D coarse
+    operator keeps its V-cycle in the deflated form (the project's own frames)."""
+    return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))
 
 
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1) -> bool:
@@ -122,11 +124,11 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1) -> bool:
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
     'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
-    saves) in ``dim`` dimensions. On the coarse operator of aggregation leaves (``kind``) one V-cycle is too
-    inexact for the deflated form (a bare 3-D DMDA matrix at 300 763 rows: 133 CG iterations against 39 with the
-    coarse LU), so 'gamg' is a Krylov solve to :data:`COARSE_KRYLOV_RTOL` preconditioned by it (39 iterations, 2.0
-    against 4.5 s with the LU and 4.2 with the V-cycle); GCR, which a V-cycle that is not positive definite on a
-    small coarse operator does not break, where CG stopped on an indefinite preconditioner. The LU of a coarse
+    saves) in ``dim`` dimensions. In 2-D (:data:`COARSE_AMG_2D`) and on the coarse operator of aggregation leaves
+    (``kind``; :data:`COARSE_AMG_3D`) the V-cycle is taken by the balanced form (:func:`coarse_exact`): on the
+    bare 3-D DMDA program (``examples/dmda_poisson.py -dim 3 -n 100 -warmup``) threshold 0.02 keeps the 41
+    iterations of a GCR to rtol 1e-3 around GAMG in the deflated form and takes 4.9 against 8.0 s (threshold 0:
+    84 iterations, 0.1: 53). The LU of a coarse
     operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested dissection in any dimension: on bare
     2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430 and 61 100 coarse rows (640^2 and
     768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms. A coarse operator
@@ -134,10 +136,7 @@ def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: 
     if solver == "gamg":
         if dim == 2:
             return dict(COARSE_AMG_2D)
-        if kind == "aggregation":
-            return {"pc_type": "ksp", "ksp_ksp_type": "gcr", "ksp_ksp_rtol": COARSE_KRYLOV_RTOL,
-                    **{"ksp_" + k: v for k, v in COARSE_AMG.items()}}
-        return dict(COARSE_AMG)
+        return dict(COARSE_AMG_3D if kind == "aggregation" else COARSE_AMG)
     ordering = "natural" if ordered else "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
     opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": ordering}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts
