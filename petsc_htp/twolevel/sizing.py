@@ -51,7 +51,7 @@ COARSE_DIRECT_MAX = {2: 200000, 3: 8192}    # coarse rows above which GAMG repla
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.05", "pc_gamg_aggressive_coarsening": "0",
                  "mg_levels_ksp_max_it": "3"}            # one V-cycle in the balanced form (coarse_solver)
-LEAF_AMG = {2: 32, 3: 32}                          # default leaf size where the coarse solve at LEAF would be GAMG
+LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 
