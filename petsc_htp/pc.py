@@ -120,17 +120,22 @@ class HTPPC:
 
         A new analysis and its first numeric step are built aside and swapped in only when both succeed
         (a failure leaves the previous preconditioner as it was); a failed numeric step on the current
-        analysis frees it (the PC is then cleanly empty).
+        analysis frees it (the PC is then cleanly empty). New values of the same pattern that call for new
+        leaves (the variant's ``moved``, on any rank) free the current analysis first: the new one reuses its memory
+        (built beside it, a 1M-row DMDA frame's setup took 4.1 against 2.4 s, the difference first touches of
+        new pages), and a failure leaves the PC empty, as a failed numeric step does.
         """
         pattern = (P.getId(), opts.pattern_key())
         nonzero = A.data != 0
-        new = (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
-               or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
-                       and _same_array(nonzero, self._csr[2])))
-        if not new:
-            new = self.variant.moved(self.analysis, A)             # values that call for new leaves
-        if Collective(P.getComm()).any(new):
+        changed = (pattern != self._pattern or self.analysis is None or not _same_array(coords, self._coords)
+                   or not (_same_array(A.indptr, self._csr[0]) and _same_array(A.indices, self._csr[1])
+                           and _same_array(nonzero, self._csr[2])))
+        coll = Collective(P.getComm())
+        moved = not changed and self.variant.moved(self.analysis, A)     # values that call for new leaves
+        if coll.any(changed or moved):
             check_symmetry(P)
+            if not coll.any(changed):
+                self._free()
             variant = self.variant
             if variant is None or variant.opts.pattern_key() != opts.pattern_key():
                 variant = variant_class(opts.variant)(opts, self.prefix)
