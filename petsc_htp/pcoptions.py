@@ -40,8 +40,8 @@ HELP = {
                      "rank) or gamg; -htp_cs_* options configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
-    "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M or with a 2-D GAMG coarse "
-            "solve), deflated (one coarse solve "
+    "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M or with a GAMG coarse "
+            "solve in 2-D or on aggregation leaves), deflated (one coarse solve "
             "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
     "overlap": "twolevel: 0 for exact leaf solves, k > 0 for additive Schwarz on leaves grown by k layers of "
                "neighbours within each rank (the forms then go through A W)",
