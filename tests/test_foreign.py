@@ -276,7 +276,7 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_large_2d_coarse_operator_on_two_ranks_gets_a_distributed_v_cycle_in_the_balanced_form(ranks):
     """In 2-D on several ranks a coarse operator above sizing.COARSE_REDUNDANT_MAX rows (440^2: about 20 000) is
-    not factored on every rank: one GAMG V-cycle, SPD, taken by the balanced form, which any SPD coarse solve keeps
+    not factored on every rank: one GAMG V-cycle, taken by the balanced form, which a convergent V-cycle keeps
     SPD (CG converges to the true residual's tolerance); on one rank the LU and the deflated form stay."""
     from petsc_htp.twolevel import sizing
 
@@ -306,7 +306,7 @@ def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ran
 
 
 def test_amg_coarse_solve_of_aggregation_leaves_is_one_v_cycle_in_the_balanced_form():
-    """On the coarse operator of aggregation leaves GAMG is one V-cycle taken by the balanced form (SPD with any SPD
+    """On the coarse operator of aggregation leaves GAMG is one V-cycle taken by the balanced form (SPD with a convergent
     coarse solve), and the outer iterations stay near those of the coarse LU; the deflated form with the same
     V-cycle takes far more."""
     A, b = CASES["dmda3d"](27000, 0)

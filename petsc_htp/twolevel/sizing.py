@@ -107,8 +107,11 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1) -> str:
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
     """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve in 2-D or on the coarse
-    operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form (symmetric positive
-    definite with any SPD coarse solve) takes well: deflated, the same V-cycle costs 1.3-3.4x the CG iterations
+    operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form takes well (with exact
+    leaves it is applied through F = W^T C, which assumes E c1 = W^T x: with a V-cycle V it stays symmetric, and
+    positive definite where V converges on its own, eigenvalues of V E in (0, 2), as GAMG's Chebyshev-smoothed
+    cycle does; otherwise CG stops on an indefinite preconditioner, named by its reason; the form that adds back
+    W^T x - E c1 took 49 against 40 iterations on 2 ranks at 1024^2 and lost the true residual): deflated, the same V-cycle costs 1.3-3.4x the CG iterations
     (a bare 3-D DMDA matrix at 300 763 rows: 133 against 39 with the coarse LU). Morton leaves' 3-D coarse
     operator keeps its V-cycle in the deflated form (the project's own frames)."""
     return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))

@@ -229,7 +229,7 @@ class Foreign(Study):
         bad = [c for c in s["foreign_cases"] if c not in CASES]
         if bad:
             raise ValueError(f"unknown foreign case(s) {', '.join(bad)}; the cases are {', '.join(CASES)}")
-        reps = s["foreign_repeats"]
+        reps = max(1, s["foreign_repeats"])
         single = solve_all(ctx.methods, problems(s["foreign_cases"], s["foreign_scales"]), ctx.extra, tick, "foreign",
                            repeats=lambda p: reps if p.n < SMALL_ROWS else 1)
         for row in single:
