@@ -25,7 +25,8 @@ class Config:
     tol : float
         With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.twolevel.coarsespace`).
     form : str
-        auto (deflated, or balanced under a KSP that needs a symmetric M), deflated or balanced.
+        auto (deflated; balanced under a KSP that needs a symmetric M or where the coarse solve is one V-cycle),
+        deflated or balanced.
     overlap : int
         0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).
     solver : str

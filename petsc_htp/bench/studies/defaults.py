@@ -144,7 +144,8 @@ def solvers(res) -> str:
         rows.append([solver] + [f"{ms(by[(m, n)]['total_ms']['median'])} ({its(by[(m, n)]['iterations']['mean'])})"
                                 if (m, n) in by else "—" for n in scales])
     return ("The picked configuration with each coarse solver, N by N (`-htp_coarse_solver auto` takes the LU up "
-            "to a coarse size and GAMG above it, `petsc_htp.twolevel.sizing.COARSE_DIRECT_MAX`):\n\n"
+            "to a coarse size and GAMG above it, `petsc_htp.twolevel.sizing.COARSE_DIRECT_MAX`, in 2-D on several ranks "
+            "`COARSE_REDUNDANT_MAX`):\n\n"
             + md_table(["Coarse solver of " + _label(base)] + [f"N={n_label(n)}: ms (its)" for n in scales], rows))
 
 
