@@ -187,12 +187,12 @@ class HTPPC:
         try:
             if self.setup is None:
                 raise RuntimeError("HTPPC.apply called before setUp")
-            r = x.array_r
-            if r.shape[0] != self.n:
-                raise ValueError(f"vector has {r.shape[0]} local entries but the HTP preconditioner "
+            size = x.getLocalSize()
+            if size != self.n:
+                raise ValueError(f"vector has {size} local entries but the HTP preconditioner "
                                  f"was set up for a matrix with {self.n} rows (size mismatch)")
             if self.fallback_active:
-                y.array_w[...] = self.inv_diag * r
+                y.array_w[...] = self.inv_diag * x.array_r
             else:
                 self.variant.apply(self.setup, x, y)
         finally:

@@ -43,11 +43,18 @@ class DirectPC:
 
     def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
-        self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
-        self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
+        self.mat, self.kind, self.prefix, self.rows = mat, kind, prefix + "leaf_", rows
+        self._comps = None                       # the graph's components, made where a null space may be
         self.G = self.pc = None
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
+
+    def components(self) -> tuple:
+        """(number, label of each row) of the connected components of the analysed pattern (made on first use:
+        only a null space needs them)."""
+        if self._comps is None:
+            self._comps = nullspace.graph_components(self.rows)
+        return self._comps
 
     @staticmethod
     def moved(rows) -> bool:
@@ -61,22 +68,24 @@ class DirectPC:
     def numeric(self, rows, density=None, keep_space=False):
         """Factor the new values (grounded where a component is null)."""
         t0 = time.perf_counter()
-        nsp = self.mat.getNullSpace()
+        nsp, diag = self.mat.getNullSpace(), rows.diagonal()
         if nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
-                                               self.comp_of_row, self.n_comp)
+                                               *self.components()[::-1])
         else:
-            null = nullspace.null_by_rowsums(np.asarray(rows.sum(axis=1)).ravel(), rows.diagonal(), self.comp_of_row,
-                                             self.n_comp)
+            rowsum = np.asarray(rows.sum(axis=1)).ravel()
+            vanish = np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)
+            null = (nullspace.null_by_rowsums(rowsum, diag, *self.components()[::-1]) if vanish.any()
+                    else np.zeros(0, dtype=bool))           # no vanishing row sum: no null component
         self.null_components = int(null.sum())
         target = self.mat
         if null.any():
-            grounded = nullspace.first_rows(self.comp_of_row, null)
+            grounded = nullspace.first_rows(self.components()[1], null)
             if self.G is None:
                 self.G = self.mat.duplicate(copy=True)
             else:
                 self.mat.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-            for i, d in zip(grounded, rows.diagonal()[grounded]):
+            for i, d in zip(grounded, diag[grounded]):
                 self.G.setValue(int(i), int(i), abs(d), addv=PETSc.InsertMode.ADD_VALUES)
             self.G.assemble()
             target = self.G
