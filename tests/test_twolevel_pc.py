@@ -604,3 +604,28 @@ def test_leaf_blocks_in_a_order_give_the_same_preconditioner(monkeypatch, opts):
     monkeypatch.setattr(leaflayout, "A_ORDER_SPAN", 64)
     reason, _, relres, ksp = solve(petsc_mat(A[perm][:, perm], null=False), b[perm])
     assert not ksp.getPC().getPythonContext().setup.st.lay.d_in_a_order and reason > 0 and relres <= 1.01e-8
+
+
+@pytest.mark.slow
+def test_an_ill_conditioned_coarse_lu_is_refined_and_taken_by_the_balanced_form():
+    """At a density contrast of 1e6 (65 536 rows) the coarse LU's forward error on a probe is about 4e-5: two
+    refinement steps, the balanced form, and CG converges (unrefined and deflated it stopped on an indefinite PC at
+    432 iterations); at 1e3 the LU is accurate as it is and the deflated form stays."""
+    from petsc_htp.bench.studies.stability import _contrast
+    from petsc_htp.petscmat import frame_mat
+    from petsc_htp.twolevel.coarsesolve import REFINE_TOL
+
+    for contrast, index in ((1e3, 0), (1e6, 1)):
+        frame = _contrast(65536, index + 1, contrast)[index]
+        mat = frame_mat(frame, PETSc.COMM_SELF)
+        petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
+        reason, its, relres, ksp = solve(mat, frame.b, htp_direct_max=None)
+        setup = ksp.getPC().getPythonContext().setup
+        assert reason > 0 and its <= 40 and relres <= 1.2e-8, (contrast, reason_name(reason), its, relres)
+        if contrast == 1e3:
+            assert setup.coarse.error <= REFINE_TOL and setup.coarse.refine == 0
+            assert setup.forms.form() == "deflated"
+        else:
+            assert setup.coarse.error > 1e-6 and setup.coarse.refine == 2
+            assert setup.forms.form() == "balanced"
+            assert "2 refinement step(s) (forward error" in "\n".join(setup.describe())

@@ -30,7 +30,7 @@ class Forms:
 
     def form(self, ksp_type=None) -> str:
         """The form in use: forced, configured, or for 'auto' the one the last :meth:`presolve` chose (deflated
-        unless ``ksp_type`` needs a symmetric M or the coarse solve is one V-cycle)."""
+        unless ``ksp_type`` needs a symmetric M or the coarse solve is one V-cycle or refined)."""
         if self.forced or self.configured != "auto":
             return self.forced or self.configured
         return "balanced" if ksp_type in SYMMETRIC_KSPS else self.auto
@@ -94,11 +94,13 @@ class Forms:
     def presolve(self, ksp, b, x, stale=False):
         """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
         this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP needs a symmetric
-        M, the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A) or the coarse
-        solve is not exact (:func:`.sizing.coarse_exact`)."""
+        M, the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A), the coarse
+        solve is not exact (:func:`.sizing.coarse_exact`) or needs refinement (:mod:`.coarsesolve`: a contrast of
+        1e6 at 262 144 rows, where the deflated form still broke down on 3 of 4 frames and the balanced one on
+        none)."""
         kind = ksp.getType()
         if self.configured == "auto":
-            inexact = kind in SYMMETRIC_KSPS or stale or not self.coarse.exact
+            inexact = kind in SYMMETRIC_KSPS or stale or not self.coarse.exact or self.coarse.refine > 0
             self.auto = "balanced" if inexact else "deflated"
             if self.needs_F():
                 self.ops.need_F()
