@@ -282,6 +282,7 @@ def test_a_large_2d_coarse_operator_on_two_ranks_gets_a_distributed_v_cycle_in_t
 
     assert sizing.coarse_solver(2, 20000, 2) == "gamg" and sizing.coarse_solver(2, 20000, 1) == "lu"
     assert sizing.coarse_solver(2, 16000, 2) == "lu" and not sizing.coarse_exact(2, "gamg")
+    assert sizing.coarse_solver(2, 65536, 2, "morton") == "lu"          # own frames: the LU, 22 against 34 its
     assert not sizing.coarse_exact(3, "gamg") and sizing.coarse_exact(3, "gamg", "morton") and sizing.coarse_exact(2, "lu")
     proc = _mpirun(ranks, EXAMPLE, "-n", "440", *HTPPC_FLAGS)
     assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -2,8 +2,8 @@
 
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
 one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ranks above
-:data:`.sizing.COARSE_REDUNDANT_MAX`) one GAMG V-cycle, in the balanced form where it is not exact enough for the
-deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's coarse coefficients;
+:data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle, in the balanced form where it is not
+exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's coarse coefficients;
 with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's dmda3d case at 64^3).
 Any PETSc PC can replace it through its options.
 
@@ -32,7 +32,7 @@ class CoarseSolve:
 
     def __init__(self, st, solver, prefix):
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
-        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size)
+        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size, st.leaves.kind)
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
@@ -109,7 +109,7 @@ class CoarseSolve:
             st = self.st
             limit = sizing.COARSE_DIRECT_MAX[st.dim]
             direct = f"direct up to {limit}"
-            if st.dim == 2 and st.coll.size > 1:
+            if st.dim == 2 and st.coll.size > 1 and st.leaves.kind == "aggregation":
                 direct = f"direct up to {sizing.COARSE_REDUNDANT_MAX} on several ranks"
             why = f" (by the problem: {st.m} rows; {direct} in {st.dim}-D)"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""

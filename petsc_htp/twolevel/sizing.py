@@ -13,10 +13,10 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
-is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows, and on one above
-``COARSE_DIRECT_MAX[2]``, one distributed GAMG V-cycle replaces the LU, taken by the balanced form
-(:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows superlinearly
-(N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
+is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows (aggregation leaves), and on one
+above ``COARSE_DIRECT_MAX[2]``, one distributed GAMG V-cycle replaces the LU, taken by the balanced form
+(:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows
+superlinearly (N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
 default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
 (sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
 
@@ -90,19 +90,22 @@ def leaf_factor(dim: int, kind: str) -> dict:
     return dict(EXACT_FACTOR if kind == "aggregation" else FACTOR[dim])
 
 
-def coarse_solver(dim: int, rows: int, ranks: int = 1) -> str:
-    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks. A 2-D LU
-    grows faster than its rows and is redundant on several ranks (each factors the whole operator, and two ranks
-    factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on several ranks, and
-    above ``COARSE_DIRECT_MAX[2]`` on one, one distributed GAMG V-cycle (:data:`COARSE_AMG_2D`) replaces it, in
-    the balanced form (:func:`coarse_exact`). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
+def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation") -> str:
+    """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
+    ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
+    operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
+    several ranks (aggregation leaves), and above ``COARSE_DIRECT_MAX[2]`` on one, one distributed GAMG V-cycle
+    (:data:`COARSE_AMG_2D`) replaces it, in the balanced form (:func:`coarse_exact`). Morton leaves (the project's
+    own frames, coordinates attached) keep the LU on several ranks up to ``COARSE_DIRECT_MAX[2]``: at 1M rows on 2
+    ranks (``examples/poisson_multiphase.py -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22
+    iterations and 1.43-1.62 against 1.12-1.47 s (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
     iterations), V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
     4 415 (39), 2048^2 15 077 (42) against 25 235 (40); one rank, 1024^2 (107 718 coarse rows) 4 513 (40)
     against 4 376 (38), 2048^2 (430 000) 23 505 (42) against 27 563 (40)."""
     limit = COARSE_DIRECT_MAX[dim]
     if rows > limit:
         return "gamg"
-    return "gamg" if dim == 2 and ranks > 1 and rows > COARSE_REDUNDANT_MAX else "lu"
+    return "gamg" if dim == 2 and ranks > 1 and kind == "aggregation" and rows > COARSE_REDUNDANT_MAX else "lu"
 
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
@@ -117,10 +120,10 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
     return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))
 
 
-def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1) -> bool:
+def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation") -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
-    it) of at least :data:`COARSE_METIS_ROWS` rows."""
-    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks) == "lu")
+    it for leaves of ``kind``) of at least :data:`COARSE_METIS_ROWS` rows."""
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind) == "lu")
     return lu and rows >= COARSE_METIS_ROWS
 
 

@@ -129,7 +129,7 @@ class Structure:
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
-        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size)
+        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind)
         order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
