@@ -385,6 +385,20 @@ def test_inner_solver_defaults_are_scoped_and_overridable(frames):
     assert abs(its_lu - its) <= 1 and relres_lu <= 1.01e-8 and prefix != ksp.getOptionsPrefix()
 
 
+def test_a_coarse_pc_set_by_options_decides_the_form_and_the_refinement(frames):
+    """-htp_cs_pc_type gamg under the default (LU) coarse solver: the PC that was made, one V-cycle, is not
+    exact, so the balanced form, and no refinement probe runs on it; the LU itself is probed."""
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    _, its_lu, _, ksp = solve(mat, frame.b)
+    coarse = ksp.getPC().getPythonContext().setup.coarse
+    assert coarse.direct and coarse.exact and 0 < coarse.error <= 1e-8 and coarse.refine == 0
+    reason, its, relres, ksp = solve(mat, frame.b, htp_cs_pc_type="gamg")
+    setup = ksp.getPC().getPythonContext().setup
+    assert setup.coarse.pc.getType() == "gamg" and not setup.coarse.exact and setup.coarse.error == 0.0
+    assert setup.forms.form() == "balanced" and reason > 0 and relres <= 1.01e-8 and its <= its_lu + 10
+
+
 def test_twolevel_checks_its_factorisations_without_probes_by_default(frames, tmp_path):
     frame = frames[0]
     _, _, _, ksp = solve(petsc_mat(frame.A), frame.b)

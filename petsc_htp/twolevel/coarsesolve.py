@@ -5,7 +5,8 @@ one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ra
 :data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle, in the balanced form where it is not
 exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's coarse coefficients;
 with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's dmda3d case at 64^3).
-Any PETSc PC can replace it through its options.
+Any PETSc PC can replace it through its options; the PC that was made decides (a direct one is exact and
+probed, below; one V-cycle is taken as :func:`.sizing.coarse_exact` says; any other takes the balanced form).
 
 An exact (LU) coarse solve is as accurate as E is conditioned: at a density contrast of 1e6, E's eigenvalues span
 1e11 and the LU's forward error on a probe is 4e-5 (5e-10 at 1e3), which the deflated form, whose start and
@@ -25,6 +26,7 @@ from . import inner, sizing
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
 REFINE_MAX = 3          # the most refinement steps
+DIRECT = ("lu", "cholesky", "redundant", "svd")        # PC types that solve E (PCREDUNDANT: an LU on every rank)
 
 
 class CoarseSolve:
@@ -36,7 +38,7 @@ class CoarseSolve:
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
-        self.refine, self.error = 0, 0.0
+        self.refine, self.error, self.direct = 0, 0.0, False
 
     def setup(self, ops):
         """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; an LU, also
@@ -50,6 +52,9 @@ class CoarseSolve:
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2, self._res, self._dc = (E.createVecLeft() for _ in range(5))
+            self.direct = self.pc.getType() in DIRECT          # the PC the options made, not the solver's name
+            self.exact = self.direct or (self.pc.getType() == "gamg"
+                                         and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind))
         self.E = ops.E
         if inner.multigrid(self.pc):
             self._near_null(ops)
@@ -58,7 +63,7 @@ class CoarseSolve:
             if self.pc.getType() == "redundant":         # it factors at its first apply: do that here
                 self.g.set(0.0)
                 self.pc.apply(self.g, self.c)
-        if self.exact:
+        if self.direct:
             self._refinement()
 
     def _refinement(self):
