@@ -399,6 +399,19 @@ def test_a_coarse_pc_set_by_options_decides_the_form_and_the_refinement(frames):
     assert setup.forms.form() == "balanced" and reason > 0 and relres <= 1.01e-8 and its <= its_lu + 10
 
 
+@pytest.mark.parametrize("pc_type", ["icc", "jacobi"])
+def test_any_other_coarse_pc_gets_the_balanced_form_as_written_and_stays_spd(frames, pc_type):
+    """A coarse PC that is neither a factor nor GAMG (here ICC(0) or Jacobi of E): the balanced form with A's
+    own products, symmetric positive definite for any SPD coarse PC; CG reaches its tolerance."""
+    frame = frames[0]
+    reason, its, relres, ksp = solve(petsc_mat(frame.A), frame.b, htp_cs_pc_type=pc_type)
+    setup = ksp.getPC().getPythonContext().setup
+    assert setup.coarse.general and not setup.coarse.exact and setup.forms.form() == "balanced"
+    assert setup.ops.F is None                                 # no shortcut product made
+    assert reason > 0 and relres <= 1.01e-8, (reason_name(reason), its, relres)
+    assert setup.check(8) == ""                                # positive Rayleigh quotients
+
+
 def test_twolevel_checks_its_factorisations_without_probes_by_default(frames, tmp_path):
     frame = frames[0]
     _, _, _, ksp = solve(petsc_mat(frame.A), frame.b)

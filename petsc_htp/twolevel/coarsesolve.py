@@ -38,7 +38,7 @@ class CoarseSolve:
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
-        self.refine, self.error, self.direct = 0, 0.0, False
+        self.refine, self.error, self.direct, self.general = 0, 0.0, False, False
 
     def setup(self, ops):
         """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; an LU, also
@@ -55,6 +55,7 @@ class CoarseSolve:
             self.direct = self.pc.getType() in DIRECT          # the PC the options made, not the solver's name
             self.exact = self.direct or (self.pc.getType() == "gamg"
                                          and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind))
+            self.general = not self.direct and self.pc.getType() != "gamg"   # the balanced form as written
         self.E = ops.E
         if inner.multigrid(self.pc):
             self._near_null(ops)

@@ -7,6 +7,9 @@ With exact leaves D B = I, so W^T A B x = W^T x + C^T B x and the deflated form 
 v = B x: one leaf solve, one coarse solve and two thin products. Started so that W^T r0 = 0
 (:meth:`Forms.presolve`), CG with it takes the iterations of the balanced form, which costs a second coarse
 solve and three more thin products and serves KSPs that need a symmetric M. Inexact leaves go through A W.
+A coarse PC that is neither a factor nor GAMG's V-cycle (``-htp_cs_pc_type ...``, e.g. another HTPPC) is taken
+by the balanced form as written, with A's own products in place of the shortcuts that assume E c = W^T x: M is
+then symmetric positive definite for any symmetric positive definite coarse PC.
 """
 from __future__ import annotations
 
@@ -37,7 +40,7 @@ class Forms:
 
     def needs_F(self) -> bool:
         """Whether the form in use needs F = W^T C."""
-        return self.form() == "balanced" and self.B.exact
+        return self.form() == "balanced" and self.B.exact and not self.coarse.general
 
     def _leaf(self, x, v):
         self._leaf_ev.begin()
@@ -72,6 +75,9 @@ class Forms:
             return
         ops.W.multTranspose(x, g)
         self._coarse(g, c)                                     # c1 = E^-1 W^T x
+        if self.coarse.general:
+            self._general(x, y)
+            return
         if not self.B.exact:
             ops.AW.mult(c, t)
             t.aypx(-1.0, x)                                    # u = x - A W c1
@@ -90,6 +96,19 @@ class Forms:
         self._coarse(g, c2)
         c2.scale(-1.0)
         ops.W.multAdd(c2, v, y)                                # y = s - W E^-1 (C^T s - W^T C c1)
+
+    def _general(self, x, y):
+        """The balanced form with A's products, after c1 = V W^T x: y = W c1 + s - W V W^T A s, s = B (x - A W c1)."""
+        ops, cs, v, t = self.ops, self.coarse, self.v, self.t
+        ops.W.mult(cs.c, y)                                    # y = W c1 (for now)
+        self.mat.mult(y, t)
+        t.aypx(-1.0, x)                                        # x - A W c1
+        self._leaf(t, v)                                       # s = B (x - A W c1)
+        self.mat.mult(v, t)
+        ops.W.multTranspose(t, cs.g)
+        self._coarse(cs.g, cs.c2)                              # c2 = V W^T A s
+        cs.c2.aypx(-1.0, cs.c)
+        ops.W.multAdd(cs.c2, v, y)                             # y = s + W (c1 - c2)
 
     def presolve(self, ksp, b, x, stale=False):
         """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
@@ -124,7 +143,7 @@ class Forms:
 
     def min_rayleigh(self, probes) -> float:
         """Smallest x^T M x / x^T x of the balanced (symmetric) M over ``probes`` random x (collective)."""
-        if self.B.exact:
+        if self.B.exact and not self.coarse.general:
             self.ops.need_F()
         x, y = self.mat.createVecs()
         rng = PETSc.Random().create(self.mat.getComm())
