@@ -3,8 +3,9 @@
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
 one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ranks above
 :data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle, in the balanced form where it is not
-exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's coarse coefficients;
-with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's dmda3d case at 64^3).
+exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's
+coarse coefficients; with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's
+dmda3d case at 64^3).
 Any PETSc PC can replace it through its options; the PC that was made decides (a direct one is exact and
 probed, below; one V-cycle is taken as :func:`.sizing.coarse_exact` says; any other takes the balanced form).
 
