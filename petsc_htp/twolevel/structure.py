@@ -54,13 +54,21 @@ class Structure:
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
-        if self.leaves.kind == "aggregation":             # where each off-diagonal entry of D and its diagonals sit
+        self._weak = None
+        if self.leaves.kind == "aggregation":
+            self.weak_made = self._weak_inside(rows.data)
+            self._weak = None                             # made again by the first moved(): a single solve keeps none
+
+    def _weak_maps(self) -> tuple:
+        """Where each off-diagonal entry of D sits in A's values, its D row and column, and the A value of each of
+        D's diagonal entries (by D's rows); made on first use and kept."""
+        if self._weak is None:
             lay = self.lay
             r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
             off = r != lay.d_indices
-            self._weak_src, self._weak_row, self._weak_col = lay.d_src[off], r[off], lay.d_indices[off].astype(np.int32)
-            self._diag_src = lay.d_src[lay.d_diag[lay.d_leaf_row]]          # by D's rows
-            self.weak_made = self._weak_inside(rows.data)
+            self._weak = (lay.d_src[off], r[off], lay.d_indices[off].astype(np.int32),
+                          lay.d_src[lay.d_diag[lay.d_leaf_row]])
+        return self._weak
 
     def resolved(self, cfg):
         """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
@@ -69,10 +77,10 @@ class Structure:
 
     def _weak_inside(self, data) -> int:
         """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
-        vals = data[self._weak_src]
-        diag = np.abs(data[self._diag_src])
-        return int(np.count_nonzero((vals * vals < THETA * THETA * (diag[self._weak_row] * diag[self._weak_col]))
-                                    & (vals != 0)))
+        src, row, col, diag_src = self._weak_maps()
+        vals = data[src]
+        diag = np.abs(data[diag_src])
+        return int(np.count_nonzero((vals * vals < THETA * THETA * (diag[row] * diag[col])) & (vals != 0)))
 
     def moved(self, rows) -> bool:
         """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
