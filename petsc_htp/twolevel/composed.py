@@ -92,7 +92,7 @@ class TwoLevelPC:
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
         lay, T, data = self.st.lay, {}, rows.data
         with phase("HTPLeafFactor", T, "leaf"):
-            self.ops.couplings(data)
+            o_values = self.ops.couplings(data)
             ground = self.space.null(self.mat, data)
             np.take(data, lay.d_src, out=self.d_values)
             if ground.any():
@@ -103,7 +103,7 @@ class TwoLevelPC:
         with phase("HTPCoarseSpace", T, "coarse_space"):
             try:
                 if new_space:
-                    self.space.compute(self.d_values, self.ops.o_values, self.ops.o_perm_rows,
+                    self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density))
                 else:
                     self.space.age += 1

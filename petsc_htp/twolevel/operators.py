@@ -35,7 +35,6 @@ class Operators:
         lay, comm = st.lay, mat.getComm()
         n, N = lay.n, st.N
         self.mat, self.st = mat, st
-        self.o_values = np.zeros(lay.o_src.size)
         self.o_perm_rows = compact(lay.iperm[lay.o_rows], n)         # O's rows in the leaves' order
         self.W = self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
         self.O = coo_aij(comm, lay.o_rows.astype(np.int64) + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
@@ -45,10 +44,11 @@ class Operators:
             self.destroy()
             raise
 
-    def couplings(self, data):
-        """O's values from A's ``data`` (the analysed pattern)."""
-        np.take(data, self.st.lay.o_src, out=self.o_values)
-        self.O.setValuesCOO(self.o_values)
+    def couplings(self, data) -> np.ndarray:
+        """O's values from A's ``data`` (the analysed pattern), set and returned (not kept: O holds them)."""
+        values = np.take(data, self.st.lay.o_src)
+        self.O.setValuesCOO(values)
+        return values
 
     def products(self, values, exact, need_F):
         """W's ``values``, then C = O W, A W (``exact`` False), E = W^T A W lifted, F = W^T C (``need_F``) and E as

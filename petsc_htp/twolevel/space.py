@@ -38,9 +38,7 @@ class CoarseSpace:
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra
         if self.flat:
             self.lead_mask = st.w_j < st.lead
-            piece = lay.pieces.label[st.w_p]
-            mine = ~self.lead_mask & (st.w_j - st.lead == st.piece_index[piece])
-            self.fixed = np.where(mine, 1.0 / np.sqrt(lay.pieces.size[piece]), 0.0)
+            self.mine = ~self.lead_mask & (st.w_j - st.lead == st.piece_index[lay.pieces.label[st.w_p]])
         else:
             self.constants = coarsespace.piece_constants(lay, st.piece_index)
             self.src = lay.pos[st.w_p] * (st.lead + self.constants.shape[2]) + st.w_j
@@ -97,6 +95,7 @@ class CoarseSpace:
             self.S_factor.setUp()
             self.failed = self.S_factor.getFailedReason()
             self._fill(self.seeds if seeds is None else seeds, diag)
+            self._free_dense()                  # its work arrays: a frame's allocation reuses freed pages cheaply
             if self.failed != PETSc.PC.FailedReason.NOERROR:      # ICC/ILU keep a failure through later setups:
                 self.S_factor.reset()                             # a new factor for the next values (D's too)
                 self.S_factor.setOperators(self.S, self.S)
@@ -109,7 +108,7 @@ class CoarseSpace:
         st, lay = self.st, self.st.lay
         self.age = 0
         if self.flat:
-            np.copyto(self.values, self.fixed)
+            self._constants()
             self.kept = st.ncols
             if st.q:
                 y, ok = coarsespace.flat(self.solve_neumann(seeds)[:, 0], lay.leaf, lay.pieces)
@@ -119,6 +118,14 @@ class CoarseSpace:
         P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.apply_neumann,
                                          diag, st.cfg.tol)
         np.take(P.reshape(-1), self.src, out=self.values)
+
+    def _constants(self):
+        """W's values of the flat space: each piece's constant 1 / sqrt(size) in its own column, zeros elsewhere
+        (made each time, not held: 16 MB at 1M rows)."""
+        st, lay = self.st, self.st.lay
+        self.values.fill(0.0)
+        rows = st.w_p[self.mine]
+        self.values[self.mine] = 1.0 / np.sqrt(lay.pieces.size[lay.pieces.label[rows]])
 
     def finish(self) -> np.ndarray:
         """W's values with the dropped pieces' columns zeroed (a copy only when some are)."""
