@@ -242,10 +242,15 @@ def run_methods(methods, problems, extra=(), monitor=False, warmup=True, tick=la
 
 
 def _median(rows) -> dict:
-    """The row of the median total time (the first failed one, if any failed); ``repeats`` says how many ran."""
-    bad = [r for r in rows if not r.get("ok", True)]
-    pick = bad[0] if bad else sorted(rows, key=lambda r: r.get("total_ms", 0.0))[(len(rows) - 1) // 2]
-    return {**pick, "repeats": len(rows)} if len(rows) > 1 else pick
+    """The row of the median total time (the first failed one, if any failed); ``repeats`` says how many ran.
+    Under MPI rank 0's choice holds on every rank (each rank's clock differs a little)."""
+    bad = [i for i, r in enumerate(rows) if not r.get("ok", True)]
+    order = sorted(range(len(rows)), key=lambda i: rows[i].get("total_ms") or 0.0)
+    pick = bad[0] if bad else order[(len(rows) - 1) // 2]
+    comm = PETSc.COMM_WORLD
+    if comm.getSize() > 1:
+        pick = comm.tompi4py().bcast(pick, root=0)
+    return {**rows[pick], "repeats": len(rows)} if len(rows) > 1 else rows[pick]
 
 
 def run_method(method, problems, extra=(), monitor=False, warmup=True, tick=lambda: None) -> list:
