@@ -176,6 +176,28 @@ def test_small_singular_matrix_is_grounded():
     assert "1 null component(s) grounded" in lines(ksp)
 
 
+def test_a_null_space_that_appears_on_new_values_of_a_preallocated_again_matrix_is_grounded():
+    """The small-matrix factor finds the graph's components only once a null space may be there, from the rows of
+    that setup: a 1-D Laplacian shifted first (no null space), then preallocated again and refilled with Neumann
+    values on the same KSP (a program that preallocates every frame), is grounded and converges."""
+    n = 3000
+    lap = sp.diags([-np.ones(n - 1), 2.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tolil()
+    lap[0, 0] = lap[n - 1, n - 1] = 1.0                          # Neumann ends: row sums vanish
+    neumann = lap.tocsr()
+    shifted = (neumann + sp.identity(n)).tocsr()
+    b = np.random.default_rng(0).standard_normal(n)
+    b -= b.mean()
+    reason, _, relres, ksp, mat = solve(shifted, b)
+    assert reason > 0 and relres <= 1e-8 and "null component" not in lines(ksp)
+    mat.setPreallocationNNZ(3)
+    for i in range(n):
+        cols = neumann.indices[neumann.indptr[i]:neumann.indptr[i + 1]]
+        mat.setValues(i, cols, neumann.data[neumann.indptr[i]:neumann.indptr[i + 1]])
+    mat.assemble()
+    reason, _, relres, ksp, _ = solve(neumann, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and "1 null component(s) grounded" in lines(ksp)
+
+
 def test_direct_max_zero_keeps_the_two_level_method():
     A, b = foreign.neumann(20)
     reason, its, relres, ksp, _ = solve(A, b, htp_direct_max="0")

@@ -412,6 +412,20 @@ def test_any_other_coarse_pc_gets_the_balanced_form_as_written_and_stays_spd(fra
     assert setup.check(8) == ""                                # positive Rayleigh quotients
 
 
+def test_a_redundant_coarse_pc_is_direct_only_around_a_factor(frames):
+    """PCREDUNDANT around an LU is a direct coarse solve (probed); around Jacobi it is any other PC: the balanced
+    form as written, whose 'auto' form is known right after the setup (for applies outside a KSP solve)."""
+    frame = frames[0]
+    mat = petsc_mat(frame.A)
+    reason, _, relres, ksp = solve(mat, frame.b, htp_cs_pc_type="redundant")
+    coarse = ksp.getPC().getPythonContext().setup.coarse
+    assert coarse.direct and coarse.exact and reason > 0 and relres <= 1.01e-8
+    reason, _, relres, ksp = solve(mat, frame.b, htp_cs_pc_type="redundant", htp_cs_redundant_pc_type="jacobi")
+    setup = ksp.getPC().getPythonContext().setup
+    assert not setup.coarse.direct and setup.coarse.general and setup.forms.auto == "balanced"
+    assert setup.ops.F is None and reason > 0 and relres <= 1.01e-8
+
+
 def test_twolevel_checks_its_factorisations_without_probes_by_default(frames, tmp_path):
     frame = frames[0]
     _, _, _, ksp = solve(petsc_mat(frame.A), frame.b)

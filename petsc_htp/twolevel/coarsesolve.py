@@ -27,7 +27,7 @@ from . import inner, sizing
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
 REFINE_MAX = 3          # the most refinement steps
-DIRECT = ("lu", "cholesky", "redundant", "svd")        # PC types that solve E (PCREDUNDANT: an LU on every rank)
+DIRECT = ("lu", "cholesky", "svd")         # PC types that solve E (also inside PCREDUNDANT: :meth:`CoarseSolve._direct`)
 
 
 class CoarseSolve:
@@ -53,7 +53,7 @@ class CoarseSolve:
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2, self._res, self._dc = (E.createVecLeft() for _ in range(5))
-            self.direct = self.pc.getType() in DIRECT          # the PC the options made, not the solver's name
+            self.direct = self._direct()                       # the PC the options made, not the solver's name
             self.exact = self.direct or (self.pc.getType() == "gamg"
                                          and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind))
             self.general = not self.direct and self.pc.getType() != "gamg"   # the balanced form as written
@@ -67,6 +67,14 @@ class CoarseSolve:
                 self.pc.apply(self.g, self.c)
         if self.direct:
             self._refinement()
+
+    def _direct(self) -> bool:
+        """Whether the PC made solves E: a factor, or PCREDUNDANT around one (its inner type from the options, LU
+        unless set)."""
+        kind = self.pc.getType()
+        if kind == "redundant":
+            kind = PETSc.Options(self.prefix).getString("redundant_pc_type", "lu")
+        return kind in DIRECT
 
     def _refinement(self):
         """Measure the solve's forward error on a random probe (collective) and set :attr:`refine`: none up to

@@ -115,6 +115,7 @@ class TwoLevelPC:
             self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
             self.coarse.setup(self.ops)
+            self.forms.settle()
         self.times = T
         self.numeric_count += 1
 

@@ -43,17 +43,18 @@ class DirectPC:
 
     def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
-        self.mat, self.kind, self.prefix, self.rows = mat, kind, prefix + "leaf_", rows
+        self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
         self._comps = None                       # the graph's components, made where a null space may be
         self.G = self.pc = None
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
-    def components(self) -> tuple:
-        """(number, label of each row) of the connected components of the analysed pattern (made on first use:
-        only a null space needs them)."""
+    def components(self, rows) -> tuple:
+        """(number, label of each row) of the connected components of ``rows`` (the analysed pattern, this
+        frame's values: the arrays may be PETSc's own, valid only during the call), made on first use (only a
+        null space needs them) and kept."""
         if self._comps is None:
-            self._comps = nullspace.graph_components(self.rows)
+            self._comps = nullspace.graph_components(rows)
         return self._comps
 
     @staticmethod
@@ -71,16 +72,16 @@ class DirectPC:
         nsp, diag = self.mat.getNullSpace(), rows.diagonal()
         if nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
-                                               *self.components()[::-1])
+                                               *self.components(rows)[::-1])
         else:
             rowsum = np.asarray(rows.sum(axis=1)).ravel()
             vanish = np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)
-            null = (nullspace.null_by_rowsums(rowsum, diag, *self.components()[::-1]) if vanish.any()
+            null = (nullspace.null_by_rowsums(rowsum, diag, *self.components(rows)[::-1]) if vanish.any()
                     else np.zeros(0, dtype=bool))           # no vanishing row sum: no null component
         self.null_components = int(null.sum())
         target = self.mat
         if null.any():
-            grounded = nullspace.first_rows(self.components()[1], null)
+            grounded = nullspace.first_rows(self.components(rows)[1], null)
             if self.G is None:
                 self.G = self.mat.duplicate(copy=True)
             else:

@@ -7,9 +7,10 @@ With exact leaves D B = I, so W^T A B x = W^T x + C^T B x and the deflated form 
 v = B x: one leaf solve, one coarse solve and two thin products. Started so that W^T r0 = 0
 (:meth:`Forms.presolve`), CG with it takes the iterations of the balanced form, which costs a second coarse
 solve and three more thin products and serves KSPs that need a symmetric M. Inexact leaves go through A W.
-A coarse PC that is neither a factor nor GAMG's V-cycle (``-htp_cs_pc_type ...``, e.g. another HTPPC) is taken
-by the balanced form as written, with A's own products in place of the shortcuts that assume E c = W^T x: M is
-then symmetric positive definite for any symmetric positive definite coarse PC.
+A coarse PC that is neither a factor nor GAMG's V-cycle (``-htp_cs_pc_type ...``) is taken by the balanced form
+as written, with A's own products in place of the shortcuts that assume E c = W^T x: M is then symmetric
+positive definite for any symmetric positive definite coarse PC (an HTPPC nested there is one only with
+``-htp_cs_htp_form balanced``: applied outside a KSP solve, it gets no start for the deflated form).
 """
 from __future__ import annotations
 
@@ -37,6 +38,13 @@ class Forms:
         if self.forced or self.configured != "auto":
             return self.forced or self.configured
         return "balanced" if ksp_type in SYMMETRIC_KSPS else self.auto
+
+    def settle(self):
+        """After the coarse solver's setup: the 'auto' form it calls for (until a presolve decides), and no F where
+        the form as written has no use for it (it was made before the coarse PC's type was known)."""
+        self.auto = "deflated" if self.coarse.exact and not self.coarse.refine else "balanced"
+        if self.coarse.general:
+            self.ops.drop_F()
 
     def needs_F(self) -> bool:
         """Whether the form in use needs F = W^T C."""

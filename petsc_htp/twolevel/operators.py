@@ -91,6 +91,12 @@ class Operators:
         if self.F is None:
             self.F = self.W.transposeMatMult(self.C)
 
+    def drop_F(self):
+        """Free F (the balanced form as written needs none)."""
+        if self.F is not None:
+            self.F.destroy()
+            self.F = None
+
     def nnz(self) -> int:
         """Values held on this rank: W, C, E, F and A W."""
         return int(sum(m.getInfo()["nz_used"] for m in (self.W, self.C, self.E, self.F, self.AW) if m is not None))
