@@ -68,6 +68,11 @@ class CoarseSolve:
         if self.direct:
             self._refinement()
 
+    @property
+    def deflatable(self) -> bool:
+        """Whether the deflated form may take this solve: exact, and exact without refinement."""
+        return self.exact and not self.refine
+
     def _direct(self) -> bool:
         """Whether the PC made solves E: a factor, or PCREDUNDANT around one (its inner type from the options, LU
         unless set)."""

@@ -44,18 +44,10 @@ class DirectPC:
     def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
-        self._comps = None                       # the graph's components, made where a null space may be
+        self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
         self.G = self.pc = None
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
-
-    def components(self, rows) -> tuple:
-        """(number, label of each row) of the connected components of ``rows`` (the analysed pattern, this
-        frame's values: the arrays may be PETSc's own, valid only during the call), made on first use (only a
-        null space needs them) and kept."""
-        if self._comps is None:
-            self._comps = nullspace.graph_components(rows)
-        return self._comps
 
     @staticmethod
     def moved(rows) -> bool:
@@ -69,24 +61,22 @@ class DirectPC:
     def numeric(self, rows, density=None, keep_space=False):
         """Factor the new values (grounded where a component is null)."""
         t0 = time.perf_counter()
-        nsp, diag = self.mat.getNullSpace(), rows.diagonal()
+        nsp = self.mat.getNullSpace()
         if nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
-                                               *self.components(rows)[::-1])
+                                               self.comp_of_row, self.n_comp)
         else:
-            rowsum = np.asarray(rows.sum(axis=1)).ravel()
-            vanish = np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)
-            null = (nullspace.null_by_rowsums(rowsum, diag, *self.components(rows)[::-1]) if vanish.any()
-                    else np.zeros(0, dtype=bool))           # no vanishing row sum: no null component
+            null = nullspace.null_by_rowsums(np.asarray(rows.sum(axis=1)).ravel(), rows.diagonal(), self.comp_of_row,
+                                             self.n_comp)
         self.null_components = int(null.sum())
         target = self.mat
         if null.any():
-            grounded = nullspace.first_rows(self.components(rows)[1], null)
+            grounded = nullspace.first_rows(self.comp_of_row, null)
             if self.G is None:
                 self.G = self.mat.duplicate(copy=True)
             else:
                 self.mat.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-            for i, d in zip(grounded, diag[grounded]):
+            for i, d in zip(grounded, rows.diagonal()[grounded]):
                 self.G.setValue(int(i), int(i), abs(d), addv=PETSc.InsertMode.ADD_VALUES)
             self.G.assemble()
             target = self.G

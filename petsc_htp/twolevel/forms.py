@@ -28,7 +28,7 @@ class Forms:
 
     def __init__(self, mat, ops, leafsolver, coarse, form):
         self.mat, self.ops, self.B, self.coarse, self.configured = mat, ops, leafsolver, coarse, form
-        self.auto, self.forced = "deflated" if coarse.exact else "balanced", None
+        self.auto, self.forced = "deflated" if coarse.deflatable else "balanced", None
         self.v, self.t = mat.createVecLeft(), mat.createVecLeft()
         self._leaf_ev, self._coarse_ev = event("HTPLeafSolve"), event("HTPCoarseSolve")
 
@@ -42,7 +42,7 @@ class Forms:
     def settle(self):
         """After the coarse solver's setup: the 'auto' form it calls for (until a presolve decides), and no F where
         the form as written has no use for it (it was made before the coarse PC's type was known)."""
-        self.auto = "deflated" if self.coarse.exact and not self.coarse.refine else "balanced"
+        self.auto = "deflated" if self.coarse.deflatable else "balanced"
         if self.coarse.general:
             self.ops.drop_F()
 
@@ -127,7 +127,7 @@ class Forms:
         none)."""
         kind = ksp.getType()
         if self.configured == "auto":
-            inexact = kind in SYMMETRIC_KSPS or stale or not self.coarse.exact or self.coarse.refine > 0
+            inexact = kind in SYMMETRIC_KSPS or stale or not self.coarse.deflatable
             self.auto = "balanced" if inexact else "deflated"
             if self.needs_F():
                 self.ops.need_F()
