@@ -39,7 +39,7 @@ from .events import event
 from .pcoptions import HTPOptions
 from .pcview import view
 from .validation import check_matrix, check_size, check_symmetry
-from .petscmat import VERSION_ATTR, attach, attached, local_rows
+from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows
 from .threads import set_threads
 from .variants import variant_class
 
@@ -72,6 +72,7 @@ class HTPPC:
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
         self.n = self.inv_diag = self._pattern = self._values = self._coords = self._guess = None
         self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
+        self._aij = None                # an AIJ copy of a BAIJ/SBAIJ operator (the products need AIJ)
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
     @staticmethod
@@ -101,6 +102,7 @@ class HTPPC:
             self._values = None
             self._threads(opts)
             check_size(P)
+            P = self._operator(P)
             with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
                 check_matrix(P, A)                                     # a named error on every rank, or none
                 self._setup(P, A, coords, density, opts)
@@ -108,6 +110,12 @@ class HTPPC:
             self._values = values
         finally:
             self._ev_setup.end()
+
+    def _operator(self, P):
+        """``P`` when it is AIJ, else its AIJ copy refreshed with the new values (:func:`.petscmat.aij_operator`)."""
+        M = aij_operator(P, self._aij)
+        self._aij = None if M is P else M
+        return M
 
     def _threads(self, opts):
         """This process's BLAS, OpenMP and torch threads as ``-htp_threads`` says (:mod:`petsc_htp.threads`)."""
@@ -244,12 +252,15 @@ class HTPPC:
         self._pattern = self._values = None
 
     def reset(self, pc):
-        """Drop the analysis and the factors (the network stays loaded)."""
+        """Drop the analysis, the factors and an AIJ copy of the operator (the network stays loaded)."""
         self._free()
+        if self._aij is not None:
+            self._aij.destroy()
+            self._aij = None
 
     def destroy(self, pc):
         """Free everything when PETSc destroys the PC."""
-        self._free()
+        self.reset(pc)
 
 
 def _same_array(a, b) -> bool:

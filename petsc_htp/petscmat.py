@@ -14,7 +14,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .twolevel.nullspace import null_regions
 
-__all__ = ["attach", "attached", "read_csr", "frame_mat", "frame_vec", "region_nullspace", "preallocated_aij",
+__all__ = ["attach", "attached", "read_csr", "aij_operator", "frame_mat", "frame_vec", "region_nullspace", "preallocated_aij",
            "local_csr", "gathered", "ghost_values"]
 
 COORDS_ATTR = "petsc_htp_coords"
@@ -125,20 +125,50 @@ def _c_api():
     return ctypes.CDLL(PETSc.__file__), (ctypes.c_int32 if np.dtype(PETSc.IntType).itemsize == 4 else ctypes.c_int64)
 
 
+def _aij_type(mat) -> str:
+    return "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
+
+
+def _converted(mat) -> PETSc.Mat:
+    """``mat`` converted to a new AIJ, or a ValueError that names its type."""
+    try:
+        return mat.convert(_aij_type(mat), out=PETSc.Mat())
+    except PETSc.Error as exc:
+        raise ValueError(f"HTPPC needs an assembled matrix that converts to AIJ; cannot convert a "
+                         f"'{mat.getType()}' matrix to {_aij_type(mat)}") from exc
+
+
+def aij_operator(mat, previous=None) -> PETSc.Mat:
+    """``mat`` itself when it is AIJ, else an AIJ copy of it (BAIJ, SBAIJ: both triangles) with its null spaces,
+    near null space and known symmetry: PETSc's sparse products take AIJ only. ``previous``, an earlier copy, takes
+    the new values when its pattern is the same (the same Mat: the analysis is reused), else it is destroyed.
+    (PETSc's own MAT_REUSE_MATRIX conversion from SBAIJ left a factor of the copy reading freed memory.)"""
+    if mat.getType() in ("seqaij", "mpiaij"):
+        if previous is not None:
+            previous.destroy()
+        return mat
+    out = _converted(mat)
+    if previous is not None:
+        same = all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ()))
+        if same:
+            out.copy(previous, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        out, gone = (previous, out) if same else (out, previous)
+        gone.destroy()
+    out.setNullSpace(mat.getNullSpace())                   # an empty one clears a reused copy's
+    out.setNearNullSpace(mat.getNearNullSpace())
+    known, symmetric = mat.isSymmetricKnown()
+    if known:
+        out.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
+    return out
+
+
 def read_csr(mat) -> sp.csr_matrix:
     """This rank's rows of ``mat`` as a scipy CSR matrix (global columns; the whole matrix on one rank), a copy.
 
     Nothing is checked here: :func:`petsc_htp.validation.check_matrix` decides on every rank together.
     """
     cols = mat.getSize()[1]
-    src = mat
-    if mat.getType() not in ("seqaij", "mpiaij"):
-        aij = "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
-        try:
-            src = mat.convert(aij, out=PETSc.Mat())         # a converted copy: the caller's Mat stays as it is
-        except PETSc.Error as exc:
-            raise ValueError(f"HTPPC needs an assembled AIJ matrix; cannot convert a "
-                             f"'{mat.getType()}' matrix to {aij}") from exc
+    src = mat if mat.getType() in ("seqaij", "mpiaij") else _converted(mat)   # a copy: the caller's Mat stays
     start, end = mat.getOwnershipRange()
     indptr, indices, data = src.getValuesCSR()                 # fresh arrays, ours to keep
     if src is not mat:

@@ -89,10 +89,21 @@ def _graph(M, agg, count) -> sp.csr_matrix:
     return G
 
 
-def aggregates(A, theta=THETA, passes=PASSES) -> np.ndarray:
+def node_graph(A, bs) -> sp.csr_matrix:
+    """The graph of ``A``'s nodes of ``bs`` rows each: the Frobenius norm of every bs x bs block (PyAMG's
+    amalgamation for block matrices; scipy's compiled BSR conversion)."""
+    B = A.tobsr((bs, bs))
+    return sp.csr_matrix((np.sqrt(np.square(B.data).sum(axis=(1, 2))), B.indices, B.indptr),
+                         shape=(A.shape[0] // bs, A.shape[1] // bs))
+
+
+def aggregates(A, theta=THETA, passes=PASSES, bs=1) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings,
-    decoupled rows in leaves of their own (see the module docstring)."""
+    decoupled rows in leaves of their own (see the module docstring). With a block size ``bs`` > 1 that divides
+    the rows, the nodes' graph (:func:`node_graph`) is aggregated, so a leaf holds whole nodes."""
     n = A.shape[0]
+    if bs > 1 and n % bs == 0:
+        return np.repeat(aggregates(node_graph(A, bs), theta, passes), bs)
     lone = decoupled_rows(A)
     keep = np.flatnonzero(~lone)
     part = np.full(n, -1, dtype=np.int64)

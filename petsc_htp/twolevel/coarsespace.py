@@ -105,14 +105,22 @@ def _size(X) -> np.ndarray:
     return np.sqrt(np.square(X).sum(1).max(1)) if X.shape[2] else np.zeros(X.shape[0])
 
 
+def _padded(lay, X) -> np.ndarray:
+    """(n, k) rows in the leaves' order as the padded (K, Lmax, k), zero on the padding."""
+    K, L = lay.shape
+    Y = np.zeros((K * L, X.shape[1]))
+    Y[lay.pos] = X
+    return Y.reshape(K, L, -1)
+
+
 def without(X, C):
     """X (K, Lmax, q) minus its components along the orthonormal columns C (K, Lmax, c) of each leaf (numpy
     arrays or torch tensors)."""
     return X - C @ (C.swapaxes(-1, -2) @ X)
 
 
-def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=None, tol=0.0) -> tuple:
-    """The coarse vectors of every leaf, padded: (K, Lmax, q + extra + c).
+def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=None, tol=0.0, fixed=None) -> tuple:
+    """The coarse vectors of every leaf, padded: (K, Lmax, f + q + extra + c).
 
     Parameters
     ----------
@@ -130,31 +138,35 @@ def basis(lay, constants, start_vectors=None, solve=None, extra=0, S=None, diag=
     diag : numpy.ndarray (n,), optional
         S's diagonal (needed with ``extra``).
     tol : float
+    fixed : numpy.ndarray (n, f), optional
+        Vectors taken as they are (the near null space, :mod:`.nearnull`), first, each leaf's part made orthonormal
+        and orthogonal to its constants; the seeds' vectors are made orthogonal to them too.
 
     Returns
     -------
-    P : numpy.ndarray (K, Lmax, q + extra + c)
+    P : numpy.ndarray (K, Lmax, f + q + extra + c)
         Zero on the padding and in unused columns.
     kept : numpy.ndarray (K,)
         Nonzero columns per leaf.
     """
     K, L = lay.shape
-    if start_vectors is None:
-        P = constants
-    else:
-        Y = np.zeros((K * L, start_vectors.shape[1]))
-        Y[lay.pos] = solve(start_vectors)
-        Y = Y.reshape(K, L, -1)
+    blocks, ahead = [], constants                    # ahead: what later vectors are made orthogonal to
+    if fixed is not None:
+        Z = _padded(lay, fixed)
+        blocks = [_orthonormal(without(Z, constants), _size(Z))]
+        ahead = np.concatenate([blocks[0], constants], axis=2)
+    if start_vectors is not None:
+        Y = _padded(lay, solve(start_vectors))
         q = Y.shape[2] - extra
-        blocks = [_orthonormal(without(Y[:, :, :q], constants), _size(Y[:, :, :q]))]
+        blocks.append(_orthonormal(without(Y[:, :, :q], ahead), _size(Y[:, :, :q])))
         if extra:
-            rest = _orthonormal(without(without(Y[:, :, q:], constants), blocks[0]), _size(Y[:, :, q:]))
+            rest = _orthonormal(without(without(Y[:, :, q:], ahead), blocks[-1]), _size(Y[:, :, q:]))
             SX = np.zeros((K * L, extra))
             SX[lay.pos] = S(rest.reshape(K * L, -1)[lay.pos])
             theta, U = np.linalg.eigh(rest.mT @ SX.reshape(K, L, -1))
             rest = rest @ U
             scale = np.bincount(lay.leaf, np.abs(diag), minlength=K) / lay.leaves.sizes
             blocks.append(rest * (theta <= tol * scale[:, None])[:, None, :])
-        P = np.concatenate(blocks + [constants], axis=2)
+    P = np.concatenate(blocks + [constants], axis=2)
     kept = (np.abs(P).sum(1) > 0).sum(1)
     return P, kept

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from . import inner, nullspace, sizing
+from . import inner, nearnull, nullspace, sizing
 from ..checks import rayleigh_reason
 from ..events import phase
 from .coarsesolve import CoarseSolve
@@ -85,8 +85,9 @@ class TwoLevelPC:
         self.analysis_ms = times["analysis"]
 
     def moved(self, rows) -> bool:
-        """Whether new values ``rows`` call for new leaves (:meth:`.structure.Structure.moved`)."""
-        return self.st.moved(rows)
+        """Whether new values ``rows`` call for new leaves (:meth:`.structure.Structure.moved`), or the operator's
+        near null space has a new number of vectors (W's pattern)."""
+        return self.st.fixed != nearnull.count(self.mat) or self.st.moved(rows)
 
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
@@ -104,7 +105,7 @@ class TwoLevelPC:
             try:
                 if new_space:
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
-                                       self._seeds(rows, density))
+                                       self._seeds(rows, density), nearnull.vectors(self.mat))
                 else:
                     self.space.age += 1
             finally:
@@ -121,7 +122,7 @@ class TwoLevelPC:
 
     def _seeds(self, rows, density):
         """The learned space's seeds (the coarse network's vectors), else None (smooth seeds)."""
-        if self.cfg.coarse != "learned" or not self.st.lead:
+        if self.cfg.coarse != "learned" or not self.st.seeded:
             return None
         from .coarsenet import learned_seeds
 
@@ -179,6 +180,7 @@ class TwoLevelPC:
                 + (f", {lone} of them decoupled rows (no coarse vector)" if lone else "")
                 + f"; {self.leafsolver.describe()}",
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
+                + (f", {st.fixed} of them near null vectors ({nearnull.describe(self.mat)})" if st.fixed else "")
                 + (f" (up to {st.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if st.extra else "")
                 + f"; global size {st.m}, {sp.null_components} null component(s) left out"

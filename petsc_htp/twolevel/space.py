@@ -34,21 +34,21 @@ class CoarseSpace:
     def __init__(self, st, make_pc, shared=None):
         lay = st.lay
         self.st, self.values = st, np.zeros(st.w_p.size)
-        self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
-        self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra
+        self.kept, self.age, self.dropped, self.near = None, 0, np.zeros(0, dtype=np.int64), None
+        self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
         if self.flat:
             self.lead_mask = st.w_j < st.lead
             self.mine = ~self.lead_mask & (st.w_j - st.lead == st.piece_index[lay.pieces.label[st.w_p]])
         else:
             self.constants = coarsespace.piece_constants(lay, st.piece_index)
             self.src = lay.pos[st.w_p] * (st.lead + self.constants.shape[2]) + st.w_j
-        self.seeds = coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, st.lead) if st.lead else None
+        self.seeds = coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, st.seeded) if st.seeded else None
         self.s_values = self.S = self.S_factor = self.S_csr = self._dense = None
         self._zeroed_key, self.failed = None, PETSc.PC.FailedReason.NOERROR
-        self.shared = bool(st.lead) and shared is not None
+        self.shared = bool(st.seeded) and shared is not None
         if self.shared:
             self.s_values, self.S, self.S_factor = shared.values, shared.mat, shared.pc
-        elif st.lead:
+        elif st.seeded:
             self.s_values = np.zeros(lay.d_src.size)
             self.S = seqaij(lay.d_indptr, lay.d_indices, self.s_values, lay.n)
             try:
@@ -56,7 +56,7 @@ class CoarseSpace:
             except Exception:
                 self.destroy()
                 raise
-        if st.lead:
+        if st.seeded:
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
 
     def null(self, mat, data) -> tuple:
@@ -77,12 +77,14 @@ class CoarseSpace:
         self.null_components = int(null.sum())
         return st.my_pieces(ground)
 
-    def compute(self, d_values, o_values, o_rows, seeds=None):
+    def compute(self, d_values, o_values, o_rows, seeds=None, near=None):
         """New coarse vectors from D's values and the couplings ``o_values`` (rows ``o_rows``, leaves' order);
-        ``seeds`` replaces the smooth seeds (learned space). With a borrowed factor, D's values come back as they
-        were but its factor holds S's: the leaf solver factors D after this."""
+        ``seeds`` replaces the smooth seeds (learned space); ``near`` (n, fixed), the near null vectors in A's row
+        order (:mod:`.nearnull`). With a borrowed factor, D's values come back as they were but its factor holds
+        S's: the leaf solver factors D after this."""
         lay = self.st.lay
-        if not self.st.lead:
+        self.near = None if near is None else near[lay.perm]
+        if not self.st.seeded:
             return self._fill(None, None)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
         diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
@@ -116,7 +118,8 @@ class CoarseSpace:
                 self.kept = st.ncols - ((st.ncols > 0) & ~ok)
             return
         P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.apply_neumann,
-                                         diag, st.cfg.tol)
+                                         diag, st.cfg.tol, self.near)
+        self.near = None
         np.take(P.reshape(-1), self.src, out=self.values)
 
     def _constants(self):

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from . import coarseorder, nullspace, sizing
+from . import coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import ghost_values
 from .aggregation import THETA
@@ -50,7 +50,8 @@ class Structure:
         self.dim = int(coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
         self.cfg = cfg = self.resolved(cfg)
-        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf)
+        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize())
+        self.fixed = nearnull.count(mat)
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
@@ -119,14 +120,16 @@ class Structure:
         self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
 
     def _columns(self, net_rank, rows):
-        """Coarse columns of every leaf (modes, extras, then one per piece but decoupled ones), their global numbers
+        """Coarse columns of every leaf (near null vectors, modes, extras, then one per piece but decoupled ones),
+        their global numbers
         (leaf after leaf, the leaves in METIS's order where :func:`.sizing.metis_ordered`) and W's pattern. A leaf of
         decoupled rows alone has no column."""
         lay, cfg = self.lay, self.cfg
         lv, pc = lay.leaves, lay.pieces
         self.q = 0 if cfg.coarse == "const" else (net_rank if cfg.coarse == "learned" else cfg.rank) - 1
         self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
-        self.lead = lead = self.q + self.extra
+        self.seeded = self.q + self.extra                              # vectors from S's inverse-iteration step
+        self.lead = lead = self.fixed + self.seeded
         self.has_col = ~lay.decoupled
         before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
         self.piece_index = index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)   # among its leaf's

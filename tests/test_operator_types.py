@@ -1,0 +1,87 @@
+"""Operators as PETSc programs hand them over: BAIJ and SBAIJ Mats, a block size, a near null space."""
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from pyamg.gallery import linear_elasticity
+
+import petsc4py  # noqa: F401  (a missing PETSc fails here, never skips)
+from petsc4py import PETSc  # noqa: E402
+
+import petsc_htp  # noqa: F401,E402
+
+ROOT = Path(__file__).resolve().parent
+MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import__('os').environ.get('PATH', '')}")
+assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"
+
+
+def run_case(n, *args):
+    """tests/elasticity_case.py under mpiexec: [(its, reason, relres, analyses, numeric)] per solve, and the output."""
+    out = subprocess.run([MPIEXEC, "-n", str(n), sys.executable, str(ROOT / "elasticity_case.py"), *map(str, args)],
+                         cwd=ROOT.parent, capture_output=True, text=True, timeout=300)
+    text = out.stdout + out.stderr
+    assert out.returncode == 0, text
+    rows = re.findall(r"solve \d: its (\d+) reason (-?\d+) relres (\S+) analyses (\d+) numeric (\d+)", text)
+    assert len(rows) == 2, text
+    return [(int(i), int(r), float(x), int(a), int(m)) for i, r, x, a, m in rows], text
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks,kind", [(1, "sbaij"), (2, "baij"), (2, "sbaij")])
+def test_baij_and_sbaij_operators_converge_and_keep_their_analysis(ranks, kind):
+    """A BAIJ or SBAIJ (upper triangle only) operator with block size 2 is taken through an AIJ copy: both solves
+    converge as the AIJ operator does, and new values of the same pattern reuse the analysis."""
+    rows, _ = run_case(ranks, "-mat_kind", kind, "-near", "bs", "-side", 110)
+    aij, _ = run_case(ranks, "-mat_kind", "aij", "-near", "bs", "-side", 110)
+    for (its, reason, relres, _, _), (its_aij, *_) in zip(rows, aij):
+        assert reason > 0 and relres <= 1.01e-8
+        assert its == its_aij
+    assert [(a, m) for *_, a, m in rows] == [(1, 1), (1, 2)]
+
+
+@pytest.mark.mpi
+def test_block_size_and_near_null_space_shape_the_coarse_space():
+    """Elasticity (24k rows): the block size's component constants and then the attached rigid-body modes cut CG's
+    iterations several times over, on one and two ranks, and -ksp_view says where the vectors came from."""
+    for ranks in (1, 2):
+        none, _ = run_case(ranks, "-mat_kind", "aij", "-near", "none", "-side", 110)
+        bs, _ = run_case(ranks, "-mat_kind", "aij", "-near", "bs", "-side", 110)
+        rbm, text = run_case(ranks, "-mat_kind", "aij", "-near", "rbm", "-side", 110, "-ksp_view")
+        assert rbm[0][0] < bs[0][0] <= 45 < 3 * 45 < none[0][0]
+        assert rbm[0][0] <= 30
+    assert "3 of them near null vectors (the Mat's near null space)" in text
+    _, text = run_case(1, "-mat_kind", "aij", "-near", "bs", "-side", 110, "-ksp_view")
+    assert "1 of them near null vectors (block size 2: each component's constant)" in text
+
+
+def test_near_null_vectors_lie_in_the_coarse_space():
+    """W's columns (orthonormal per leaf) hold every attached near null vector exactly."""
+    A, B = linear_elasticity((50, 50), format="csr")
+    A = sp.csr_matrix(A)
+    mat = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+    mat.setBlockSize(2)
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    vecs = [PETSc.Vec().createWithArray(B[:, j].copy(), comm=PETSc.COMM_SELF) for j in range(B.shape[1])]
+    mat.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
+    pc = PETSc.PC().create(PETSc.COMM_SELF)
+    pc.setOperators(mat, mat)
+    pc.setType("python")
+    pc.setPythonType("petsc_htp.HTPPC")
+    PETSc.Options().setValue("htp_direct_max", 0)
+    try:
+        pc.setFromOptions()
+        pc.setUp()
+    finally:
+        PETSc.Options().delValue("htp_direct_max")
+    W = pc.getPythonContext().setup.ops.W
+    indptr, indices, values = W.getValuesCSR()
+    Wd = sp.csr_matrix((values, indices, indptr), shape=W.getSize()).toarray()
+    assert np.allclose(Wd.T @ Wd, np.diag((np.abs(Wd).sum(0) > 0).astype(float)), atol=1e-10)
+    assert np.linalg.norm(B - Wd @ (Wd.T @ B)) <= 1e-10 * np.linalg.norm(B)
+    pc.destroy()
+    mat.destroy()
