@@ -15,15 +15,19 @@ from petsc4py import PETSc  # noqa: E402
 
 import petsc_htp  # noqa: F401,E402
 
-ROOT = Path(__file__).resolve().parent
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "elasticity.py"
+OPTS = ("-ksp_type", "cg", "-ksp_norm_type", "unpreconditioned", "-ksp_rtol", "1e-8", "-pc_type", "python",
+        "-pc_python_type", "petsc_htp.HTPPC")
 MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import__('os').environ.get('PATH', '')}")
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"
 
 
 def run_case(n, *args):
-    """tests/elasticity_case.py under mpiexec: [(its, reason, relres, analyses, numeric)] per solve, and the output."""
-    out = subprocess.run([MPIEXEC, "-n", str(n), sys.executable, str(ROOT / "elasticity_case.py"), *map(str, args)],
-                         cwd=ROOT.parent, capture_output=True, text=True, timeout=300)
+    """examples/elasticity.py with CG + HTPPC under mpiexec: [(its, reason, relres, analyses, numeric)] per solve,
+    and the output."""
+    out = subprocess.run([MPIEXEC, "-n", str(n), sys.executable, str(EXAMPLE), *OPTS, *map(str, args)],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
     text = out.stdout + out.stderr
     assert out.returncode == 0, text
     rows = re.findall(r"solve \d: its (\d+) reason (-?\d+) relres (\S+) analyses (\d+) numeric (\d+)", text)
