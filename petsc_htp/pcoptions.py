@@ -28,7 +28,8 @@ HELP = {
                 "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
-    "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D), const (r=1), eig "
+    "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D; const where the Mat "
+              "has a block size or a near null space, whose vectors every leaf takes too), const (r=1), eig "
               "(local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r: each piece's constant and r - 1 more (eig; learned takes "

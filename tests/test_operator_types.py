@@ -89,3 +89,15 @@ def test_near_null_vectors_lie_in_the_coarse_space():
     assert np.linalg.norm(B - Wd @ (Wd.T @ B)) <= 1e-10 * np.linalg.norm(B)
     pc.destroy()
     mat.destroy()
+
+
+def test_near_null_vectors_keep_the_coarse_lu_and_take_the_const_space():
+    """With near null vectors of its own an operator keeps the coarse LU on several ranks (GAMG's V-cycle on the
+    coarse operator does not know its near null space) and takes the piece constants besides them."""
+    from petsc_htp.twolevel import sizing
+
+    assert sizing.coarse_solver(2, 50_000, 2, "aggregation") == "gamg"
+    assert sizing.coarse_solver(2, 50_000, 2, "aggregation", near=2) == "lu"
+    assert sizing.coarse_solver(2, 250_000, 1, "aggregation", near=2) == "gamg"     # past any direct solve
+    assert sizing.coarse_space(2, 0) == "eig" and sizing.coarse_space(3, 0) == "const"
+    assert sizing.coarse_space(2, 3) == "const"

@@ -56,6 +56,13 @@ COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plai
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 
 
+def coarse_space(dim, near) -> str:
+    """The coarse space by the problem: the piece constants alone once the operator brings ``near`` > 0 near null
+    vectors of its own (block size, attached near null space: 2-D elasticity at 24k-180k rows, 3-4 more CG
+    iterations and 25-45 % less setup than with the eig vector), else :data:`COARSE` by dimension."""
+    return "const" if near else COARSE[dim]
+
+
 def dimension(coords_dim, shape) -> int:
     """2 or 3: the attached coordinates' dimension, else what the graph showed (``shape``: a
     :class:`~petsc_htp.twolevel.graphshape.GraphShape`)."""
@@ -90,7 +97,7 @@ def leaf_factor(dim: int, kind: str) -> dict:
     return dict(EXACT_FACTOR if kind == "aggregation" else FACTOR[dim])
 
 
-def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation") -> str:
+def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> str:
     """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
@@ -101,11 +108,14 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     iterations and 1.43-1.62 against 1.12-1.47 s (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
     iterations), V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
     4 415 (39), 2048^2 15 077 (42) against 25 235 (40); one rank, 1024^2 (107 718 coarse rows) 4 513 (40)
-    against 4 376 (38), 2048^2 (430 000) 23 505 (42) against 27 563 (40)."""
+    against 4 376 (38), 2048^2 (430 000) 23 505 (42) against 27 563 (40). An operator with ``near`` > 0 near null
+    vectors of its own keeps the LU on several ranks too: GAMG's V-cycle does not know the coarse operator's near
+    null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations)."""
     limit = COARSE_DIRECT_MAX[dim]
     if rows > limit:
         return "gamg"
-    return "gamg" if dim == 2 and ranks > 1 and kind == "aggregation" and rows > COARSE_REDUNDANT_MAX else "lu"
+    several = dim == 2 and ranks > 1 and kind == "aggregation" and not near
+    return "gamg" if several and rows > COARSE_REDUNDANT_MAX else "lu"
 
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
@@ -120,10 +130,10 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
     return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))
 
 
-def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation") -> bool:
+def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
-    it for leaves of ``kind``) of at least :data:`COARSE_METIS_ROWS` rows."""
-    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind) == "lu")
+    it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows."""
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near) == "lu")
     return lu and rows >= COARSE_METIS_ROWS
 
 

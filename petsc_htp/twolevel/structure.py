@@ -49,9 +49,9 @@ class Structure:
         local = sizing.dimension(None if coords is None else coords.shape[1], self.shape)
         self.dim = int(coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
+        self.fixed = nearnull.count(mat)
         self.cfg = cfg = self.resolved(cfg)
         self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize())
-        self.fixed = nearnull.count(mat)
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
@@ -72,9 +72,10 @@ class Structure:
         return self._weak
 
     def resolved(self, cfg):
-        """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix (:mod:`.sizing`)."""
+        """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix and its near null vectors
+        (:mod:`.sizing`)."""
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N),
-                                   coarse=sizing.COARSE[self.dim] if cfg.coarse == "auto" else cfg.coarse)
+                                   coarse=sizing.coarse_space(self.dim, self.fixed) if cfg.coarse == "auto" else cfg.coarse)
 
     def _weak_inside(self, data) -> int:
         """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
@@ -140,7 +141,8 @@ class Structure:
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
-        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind)
+        self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind,
+                                            self.fixed)
         order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
