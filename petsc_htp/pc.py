@@ -72,7 +72,7 @@ class HTPPC:
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
         self.n = self.inv_diag = self._pattern = self._values = self._coords = self._guess = None
         self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
-        self._aij = None                # an AIJ copy of a BAIJ/SBAIJ operator (the products need AIJ)
+        self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
     @staticmethod
@@ -112,8 +112,12 @@ class HTPPC:
             self._ev_setup.end()
 
     def _operator(self, P):
-        """``P`` when it is AIJ, else its AIJ copy refreshed with the new values (:func:`.petscmat.aij_operator`)."""
+        """``P`` when it is AIJ, else its AIJ copy refreshed with the new values (:func:`.petscmat.aij_operator`);
+        a copy that gives way stays alive until the analysis that holds it is freed (a failed new analysis
+        leaves the previous preconditioner as it was)."""
         M = aij_operator(P, self._aij)
+        if self._aij is not None and M is not self._aij:
+            self._retired.append(self._aij)
         self._aij = None if M is P else M
         return M
 
@@ -250,6 +254,9 @@ class HTPPC:
             self.variant.destroy(self.analysis)
         self.analysis = self.setup = None
         self._pattern = self._values = None
+        for mat in self._retired:
+            mat.destroy()
+        self._retired = []
 
     def reset(self, pc):
         """Drop the analysis, the factors and an AIJ copy of the operator (the network stays loaded)."""

@@ -14,8 +14,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .twolevel.nullspace import null_regions
 
-__all__ = ["attach", "attached", "read_csr", "aij_operator", "frame_mat", "frame_vec", "region_nullspace", "preallocated_aij",
-           "local_csr", "gathered", "ghost_values"]
+__all__ = ["attach", "attached", "read_csr", "aij_operator", "frame_mat", "frame_vec", "region_nullspace",
+           "preallocated_aij", "local_csr", "gathered", "ghost_values"]
 
 COORDS_ATTR = "petsc_htp_coords"
 DENSITY_ATTR = "petsc_htp_density"
@@ -126,6 +126,7 @@ def _c_api():
 
 
 def _aij_type(mat) -> str:
+    """The AIJ type for ``mat``'s communicator."""
     return "mpiaij" if mat.getComm().getSize() > 1 else "seqaij"
 
 
@@ -141,19 +142,16 @@ def _converted(mat) -> PETSc.Mat:
 def aij_operator(mat, previous=None) -> PETSc.Mat:
     """``mat`` itself when it is AIJ, else an AIJ copy of it (BAIJ, SBAIJ: both triangles) with its null spaces,
     near null space and known symmetry: PETSc's sparse products take AIJ only. ``previous``, an earlier copy, takes
-    the new values when its pattern is the same (the same Mat: the analysis is reused), else it is destroyed.
-    (PETSc's own MAT_REUSE_MATRIX conversion from SBAIJ left a factor of the copy reading freed memory.)"""
+    the new values when its pattern is the same (the same Mat: the analysis is reused); otherwise a new copy comes
+    back and ``previous`` is left to the caller (an analysis may still hold it). (PETSc's own MAT_REUSE_MATRIX
+    conversion from SBAIJ left a factor of the copy reading freed memory.)"""
     if mat.getType() in ("seqaij", "mpiaij"):
-        if previous is not None:
-            previous.destroy()
         return mat
     out = _converted(mat)
-    if previous is not None:
-        same = all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ()))
-        if same:
-            out.copy(previous, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        out, gone = (previous, out) if same else (out, previous)
-        gone.destroy()
+    if previous is not None and all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ())):
+        out.copy(previous, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        out.destroy()
+        out = previous
     out.setNullSpace(mat.getNullSpace())                   # an empty one clears a reused copy's
     out.setNearNullSpace(mat.getNearNullSpace())
     known, symmetric = mat.isSymmetricKnown()

@@ -58,9 +58,10 @@ def test_block_size_and_near_null_space_shape_the_coarse_space():
         rbm, text = run_case(ranks, "-mat_kind", "aij", "-near", "rbm", "-side", 110, "-ksp_view")
         assert rbm[0][0] < bs[0][0] <= 50 < 3 * 50 < none[0][0]
         assert rbm[0][0] <= 32
-    assert "3 of them near null vectors (the Mat's near null space)" in text
+    assert "from 3 near null vector(s) per leaf beside the piece constants (the Mat's near null space)" in text
     _, text = run_case(1, "-mat_kind", "aij", "-near", "bs", "-side", 110, "-ksp_view")
-    assert "1 of them near null vectors (block size 2: each component's constant)" in text
+    assert ("from 1 near null vector(s) per leaf beside the piece constants (block size 2: each component's "
+            "constant)") in text
 
 
 def test_near_null_vectors_lie_in_the_coarse_space():
@@ -101,3 +102,47 @@ def test_near_null_vectors_keep_the_coarse_lu_and_take_the_const_space():
     assert sizing.coarse_solver(2, 250_000, 1, "aggregation", near=2) == "gamg"     # past any direct solve
     assert sizing.coarse_space(2, 0) == "eig" and sizing.coarse_space(3, 0) == "const"
     assert sizing.coarse_space(2, 3) == "const"
+
+
+def test_a_baij_operator_whose_pattern_grows_gets_a_new_copy_and_analysis():
+    """New nonzeros in the same BAIJ Mat: a new AIJ copy and a new analysis; the earlier copy lives until the
+    analysis that held it is freed, and both solves converge."""
+    A = sp.csr_matrix(linear_elasticity((30, 30), format="csr")[0])
+    n = A.shape[0]
+    mat = PETSc.Mat().create(comm=PETSc.COMM_SELF)
+    mat.setSizes((n, n), bsize=2)
+    mat.setType("baij")
+    mat.setUp()
+    mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for i in range(n):
+        mat.setValues([i], A.indices[A.indptr[i]:A.indptr[i + 1]], A.data[A.indptr[i]:A.indptr[i + 1]])
+    mat.assemble()
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix("grow_")
+    ksp.setOperators(mat, mat)
+    ksp.setType("cg")
+    ksp.setTolerances(rtol=1e-8, max_it=500)
+    ksp.getPC().setType("python")
+    ksp.getPC().setPythonType("petsc_htp.HTPPC")
+    PETSc.Options().setValue("grow_htp_direct_max", 0)
+    try:
+        ksp.setFromOptions()
+        b, x = mat.createVecs()
+        b.setRandom()
+        ksp.solve(b, x)
+        ctx = ksp.getPC().getPythonContext()
+        first = ctx._aij
+        assert ksp.getConvergedReason() > 0 and ctx.analysis_count == 1
+        far = n - 2                                                 # couple node 0 to the last node: new blocks
+        mat.setValues([0, 1], [far, far + 1], -1e-3 * np.eye(2))
+        mat.setValues([far, far + 1], [0, 1], -1e-3 * np.eye(2))
+        mat.assemble()
+        mat.shift(1e-2)
+        ksp.solve(b, x)
+        assert ksp.getConvergedReason() > 0 and ctx.analysis_count == 2
+        assert ctx._aij is not first and ctx._retired == [] and not first.handle    # freed with the old analysis
+    finally:
+        PETSc.Options().delValue("grow_htp_direct_max")
+        ksp.destroy()
+        mat.destroy()

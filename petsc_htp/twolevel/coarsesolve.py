@@ -35,8 +35,8 @@ class CoarseSolve:
 
     def __init__(self, st, solver, prefix):
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
-        chosen = sizing.coarse_solver(st.dim, st.m, st.coll.size, st.leaves.kind, st.fixed)
-        self.solver = solver if solver != "auto" else chosen
+        self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size,
+                                                                           st.leaves.kind, st.fixed)
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None

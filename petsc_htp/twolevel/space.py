@@ -34,7 +34,7 @@ class CoarseSpace:
     def __init__(self, st, make_pc, shared=None):
         lay = st.lay
         self.st, self.values = st, np.zeros(st.w_p.size)
-        self.kept, self.age, self.dropped, self.near = None, 0, np.zeros(0, dtype=np.int64), None
+        self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
         if self.flat:
             self.lead_mask = st.w_j < st.lead
@@ -83,9 +83,9 @@ class CoarseSpace:
         order (:mod:`.nearnull`). With a borrowed factor, D's values come back as they were but its factor holds
         S's: the leaf solver factors D after this."""
         lay = self.st.lay
-        self.near = None if near is None else near[lay.perm]
+        near = None if near is None else near[lay.perm]
         if not self.st.seeded:
-            return self._fill(None, None)
+            return self._fill(None, None, near)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
         diag = coarsespace.neumann_diagonal(d_values[lay.d_diag], outside, lay.leaf, lay.leaves.sizes)
         d_diagonal = d_values[lay.d_diag]
@@ -96,7 +96,7 @@ class CoarseSpace:
             self.S.stateIncrease()
             self.S_factor.setUp()
             self.failed = self.S_factor.getFailedReason()
-            self._fill(self.seeds if seeds is None else seeds, diag)
+            self._fill(self.seeds if seeds is None else seeds, diag, near)
             self._free_dense()                  # its work arrays: a frame's allocation reuses freed pages cheaply
             if self.failed != PETSc.PC.FailedReason.NOERROR:      # ICC/ILU keep a failure through later setups:
                 self.S_factor.reset()                             # a new factor for the next values (D's too)
@@ -105,8 +105,9 @@ class CoarseSpace:
             if self.shared:
                 d_values[lay.d_diag] = d_diagonal
 
-    def _fill(self, seeds, diag):
-        """W's values from the seeds through S's factor (none: the constants alone)."""
+    def _fill(self, seeds, diag, near=None):
+        """W's values from the seeds through S's factor (none: the constants alone) and the near null vectors
+        ``near`` (leaves' order)."""
         st, lay = self.st, self.st.lay
         self.age = 0
         if self.flat:
@@ -118,8 +119,7 @@ class CoarseSpace:
                 self.kept = st.ncols - ((st.ncols > 0) & ~ok)
             return
         P, self.kept = coarsespace.basis(lay, self.constants, seeds, self.solve_neumann, st.extra, self.apply_neumann,
-                                         diag, st.cfg.tol, self.near)
-        self.near = None
+                                         diag, st.cfg.tol, near)
         np.take(P.reshape(-1), self.src, out=self.values)
 
     def _constants(self):
