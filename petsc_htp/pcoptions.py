@@ -10,13 +10,14 @@ from .variants import VARIANTS
 ORDERINGS = ("auto", "aggregation", "morton", "graph", "rcm", "natural", "metis")
 COARSE = ("auto", "const", "eig", "learned")
 COARSE_SOLVERS = ("auto", "lu", "gamg")
+AGGREGATIONS = ("auto", "standard", "pairs")
 FALLBACKS = ("none", "jacobi")
 FORMS = ("auto", "deflated", "balanced")
 
 # Fields whose change needs a new analysis (ordering, partition), or may switch between the two-level method and a
 # small matrix's whole-matrix factor (form, coarse_space_every); the others only a numeric step.
-PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "leaf", "coarse", "coarse_checkpoint", "coarse_rank",
-                  "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every")
+PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "aggregation", "leaf", "coarse", "coarse_checkpoint",
+                  "coarse_rank", "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
@@ -26,9 +27,14 @@ HELP = {
                 "(twolevel: aggregates of aggregates of A's strong couplings; their size follows the graph), morton, "
                 "rcm, natural, graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's "
                 "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
+    "aggregation": "twolevel aggregation leaves: the passes after the first, auto (pairs, with the const space, in "
+                   "2-D where rows hold at most 5.5 entries on average and the Mat has no block size or near null "
+                   "space; else standard), standard (aggregates of aggregates: 10-40 rows) or pairs (aggregates "
+                   "matched in pairs: 3-17 rows)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
-    "coarse": "twolevel coarse space: auto (eig in 2-D; const, with ICC(0) leaf solves, in 3-D; const where the Mat "
+    "coarse": "twolevel coarse space: auto (eig in 2-D, const on paired aggregates; const, with ICC(0) leaf solves, "
+              "in 3-D; const where the Mat "
               "has a block size or a near null space, whose vectors every leaf takes too), const (r=1), eig "
               "(local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
@@ -68,6 +74,7 @@ class HTPOptions:
     checkpoint: str = ""
     device: str = "auto"
     ordering: str = "auto"
+    aggregation: str = "auto"
     leaf: int = 0
     coarse: str = "auto"
     coarse_rank: int = 2
@@ -98,6 +105,7 @@ class HTPOptions:
         """Raise ValueError naming the first bad option."""
         for name, allowed in (("variant", VARIANTS), ("ordering", ORDERINGS), ("coarse", COARSE),
                               ("coarse_solver", COARSE_SOLVERS),
+                              ("aggregation", AGGREGATIONS),
                               ("fallback", FALLBACKS), ("form", FORMS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{opt}{name} {getattr(self, name)!r} unknown; use one of {', '.join(allowed)}")

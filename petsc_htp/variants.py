@@ -71,7 +71,8 @@ class TwoLevel:
     def config(self) -> Config:
         """The two-level configuration from the options."""
         o = self.opts
-        return Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap, o.coarse_solver)
+        return Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap, o.coarse_solver,
+                      aggregation=o.aggregation)
 
     def analyse(self, mat, A, coords):
         """Leaves, index maps, components and every matrix with its pattern (see
@@ -98,8 +99,8 @@ class TwoLevel:
         from .twolevel.graphshape import graph_shape
 
         o = self.opts
-        plain = (o.leaf, o.ordering, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank, o.form,
-                 o.coarse_space_every) == (0, "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
+        plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
+                 o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
         n = mat.getSize()[0]
         if mat.getComm().getSize() > 1 or not plain:
             return None

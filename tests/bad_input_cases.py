@@ -264,6 +264,10 @@ def case_unknown_coarse_solver():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse_solver": "mumps"})[0]
 
 
+def case_unknown_aggregation():
+    return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_aggregation": "triples"})[0]
+
+
 def main():
     only = sys.argv[2:]                         # case names to run (default: every case)
     for name, fn in sorted((k, v) for k, v in globals().items() if k.startswith("case_")):

@@ -44,6 +44,7 @@ EXPECTED = {
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
     "unknown_coarse": r"error: -htp_coarse 'fancy' unknown; use one of auto, const, eig, learned",
     "unknown_coarse_solver": r"error: -htp_coarse_solver 'mumps' unknown; use one of auto, lu, gamg",
+    "unknown_aggregation": r"error: -htp_aggregation 'triples' unknown; use one of auto, standard, pairs",
 }
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2")}

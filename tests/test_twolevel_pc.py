@@ -240,7 +240,7 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     sim.advance()
     A, b, _, _ = sim.system()
     mat = petsc_mat(A)
-    _, _, _, ksp = solve(mat, b, htp_coarse_space_every=3)
+    _, _, _, ksp = solve(mat, b, htp_coarse_space_every=3, htp_aggregation="standard")     # the eig space
     ctx, ages, spaces = ksp.getPC().getPythonContext(), [], []
     for _ in range(4):
         ages.append(ctx.setup.space.age)
@@ -344,7 +344,7 @@ def test_torch_and_petsc_back_ends_agree_on_every_stability_case(coarse, leaf, r
         if prob.attach:
             petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
         reason, its, _, _ = solve(mat, frame.b, htp_coarse=coarse, htp_leaf=leaf, htp_coarse_rank=rank,
-                                  ksp_rtol=rtol, htp_form="balanced")     # torch's form (the deflated one
+                                  ksp_rtol=rtol, htp_form="balanced", htp_aggregation="standard")     # torch's leaves     # torch's form (the deflated one
         # stagnates near 1.7e-8 at contrast 1e6 with the null space attached, then stops on DIVERGED_INDEFINITE_PC)
         assert torch_res.reason == "converged" and reason > 0, (prob.case, torch_res.reason, reason_name(reason))
         assert abs(its - torch_res.iterations) <= 1, (prob.case, its, torch_res.iterations)
@@ -355,7 +355,7 @@ def test_coarse_space_holds_piece_constants_and_orthonormal_modes(frames):
     under A's constant null space the first leaf's constant is left out (a zero column)."""
     frame = frames[0]
     mat = petsc_mat(frame.A)
-    _, _, _, ksp = solve(mat, frame.b, htp_coarse_rank=4, htp_coarse_tol=0)
+    _, _, _, ksp = solve(mat, frame.b, htp_coarse="eig", htp_coarse_rank=4, htp_coarse_tol=0)
     setup = ksp.getPC().getPythonContext().setup
     lay = setup.st.lay
     W = sp.csr_matrix(setup.ops.W.getValuesCSR()[::-1], shape=setup.ops.W.getSize())
@@ -553,7 +553,8 @@ def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):
 def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     """From COARSE_METIS_ROWS coarse rows the leaves' coarse columns come in METIS's nested-dissection
     order and the LU keeps it: the same coarse operator permuted (same values; at this small size about the same fill), the same
-    iterations; never for a GAMG coarse solve (two ranks: test_mpi)."""
+    iterations; never for a GAMG coarse solve (two ranks: test_mpi), nor for one column per leaf (the default's
+    paired aggregates with the const space), which PETSc's own ordering serves."""
     from petsc_htp.scenes import foreign
 
     A, b = foreign.dmda(2, 120)
@@ -561,7 +562,7 @@ def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     runs = {}
     for limit in (10 ** 9, 0):
         monkeypatch.setattr(sizing, "COARSE_METIS_ROWS", limit)
-        reason, its, relres, ksp = solve(mat, b)
+        reason, its, relres, ksp = solve(mat, b, htp_aggregation="standard")         # the eig space: 2 per leaf
         setup = ksp.getPC().getPythonContext().setup
         E = setup.ops.E
         runs[limit] = (its, np.sort(E.getDiagonal().getArray()), E.getInfo()["nz_used"],
@@ -570,6 +571,8 @@ def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     (its0, d0, nz0, f0, o0), (its1, d1, nz1, f1, o1) = runs[10 ** 9], runs[0]
     assert (o0, o1) == (False, True) and abs(its0 - its1) <= 1 and nz0 == nz1 and f1 <= 1.1 * f0, runs
     np.testing.assert_allclose(d0, d1, rtol=1e-12)
+    reason, _, _, scalar = solve(mat, b)
+    assert reason > 0 and not scalar.getPC().getPythonContext().setup.st.ordered
     viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
     ksp.view(viewer)
     viewer.destroy()

@@ -169,8 +169,11 @@ class TwoLevelPC:
         kept = sp.kept if sp.kept is not None else st.ncols
         q = (f"{kept.min()}-{kept.max()} per leaf (mean {kept.mean():.2f})" if kept.min() != kept.max()
              else f"{kept.min()} per leaf")
-        auto = f" ({' and '.join(st.auto)} by the problem: {st.dim}-D)" if st.auto else ""
-        size = f"mean {lv.sizes.mean():.1f} rows" if lv.kind == "aggregation" else f"L={cfg.leaf}"
+        names = [name for name in st.auto if name != "aggregation" or lv.kind == "aggregation"]
+        names = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
+        auto = f" ({names} by the problem: {st.dim}-D)" if names else ""
+        size = (f"mean {lv.sizes.mean():.1f} rows, second pass {cfg.aggregation}" if lv.kind == "aggregation"
+                else f"L={cfg.leaf}")
         lone = st.coll.sum(int(lay.decoupled.sum()))
         shape = [f"{st.shape.describe()} (this rank's rows)"] if st.shape is not None else []
         form = self.forms.form()

@@ -18,6 +18,8 @@ class Config:
         Rows per leaf; 0: by the problem's dimension (:mod:`petsc_htp.twolevel.sizing`).
     ordering : str
         Leaf layout: auto, aggregation, morton, metis, natural or rcm (:func:`petsc_htp.twolevel.leaves.choose_leaves`).
+    aggregation : str
+        Aggregation leaves' passes after the first: standard, pairs or auto (by the problem's dimension).
     coarse : str
         const, eig, learned or auto (by the problem's dimension).
     rank : int
@@ -41,3 +43,4 @@ class Config:
     form: str = "auto"
     overlap: int = 0
     solver: str = "auto"
+    aggregation: str = "auto"

@@ -4,7 +4,9 @@ factor and coarse solver.
 Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies defaults [--dim 3]``; README):
 
 - A bare matrix (no coordinates): aggregation leaves (:mod:`petsc_htp.twolevel.aggregation`), whose size follows
-  the graph, solved exactly; the dimension is what the graph shows (:mod:`petsc_htp.twolevel.graphshape`).
+  the graph, solved exactly; the dimension is what the graph shows (:mod:`petsc_htp.twolevel.graphshape`). In
+  2-D with rows as sparse as a 5-point stencil's, the first pass's aggregates are paired and take the const space
+  (:func:`aggregation`).
 - 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
@@ -56,11 +58,24 @@ COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plai
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 
 
-def coarse_space(dim, near) -> str:
+def coarse_space(dim, near, paired=False) -> str:
     """The coarse space by the problem: the piece constants alone once the operator brings ``near`` > 0 near null
     vectors of its own (block size, attached near null space: 2-D elasticity at 24k-180k rows, 3-4 more CG
-    iterations and 25-45 % less setup than with the eig vector), else :data:`COARSE` by dimension."""
-    return "const" if near else COARSE[dim]
+    iterations and 25-45 % less setup than with the eig vector) or on leaves of ``paired`` aggregates of a sparse
+    graph (see :func:`aggregation`), else :data:`COARSE` by dimension."""
+    return "const" if near or paired else COARSE[dim]
+
+
+def aggregation(dim, near, per_row) -> str:
+    """The kind of the aggregation passes after the first (:mod:`.aggregation`): 'pairs' in 2-D where rows hold at
+    most :data:`RICH_ROW` stored entries (5-point stencils) and the operator brings no near null vectors
+    (``near``), else 'standard'. There leaves of paired aggregates (3-17 rows) with the const space cost less
+    than standard ones (10-40 rows) with the eig space, in about the same CG iterations, as their coarse LU is
+    scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README). Where
+    rows are richer (9-point stencils, P1 triangles) the const space on them takes far more iterations (rotated
+    anisotropy: 110-207 against 40-61) and the eig space on them a coarse LU of 1.5 times the rows at twice the
+    cost of the standard leaves' (the same study)."""
+    return "pairs" if dim == 2 and not near and per_row <= RICH_ROW else "standard"
 
 
 def dimension(coords_dim, shape) -> int:
@@ -130,11 +145,15 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
     return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))
 
 
-def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> bool:
+def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
+                  block: int = 2) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
-    it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows."""
+    it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows in
+    ``block`` > 1 columns per leaf (besides further pieces). A scalar coarse operator (one column per leaf) is ordered as well by PETSc's
+    own orderings: at 512^2 (``examples/dmda_poisson.py -n 512``, 23 000 coarse rows) METIS took 85 ms and the
+    factor in its order 56, against 116 for the factor in PETSc's nested dissection order."""
     lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near) == "lu")
-    return lu and rows >= COARSE_METIS_ROWS
+    return lu and rows >= COARSE_METIS_ROWS and block > 1
 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:

@@ -48,10 +48,12 @@ class Structure:
         self.shape = graph_shape(self.block) if coords is None else None
         local = sizing.dimension(None if coords is None else coords.shape[1], self.shape)
         self.dim = int(coll.max_array(np.array([local]))[0])
-        self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto")) if unset]
+        self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto"),
+                                              ("aggregation", cfg.aggregation == "auto")) if unset]
         self.fixed = nearnull.count(mat)
-        self.cfg = cfg = self.resolved(cfg)
-        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize())
+        self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
+        self.cfg = cfg = self.resolved(cfg, coords is None)
+        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation)
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
@@ -71,11 +73,15 @@ class Structure:
                           lay.d_src[lay.d_diag[lay.d_leaf_row]])
         return self._weak
 
-    def resolved(self, cfg):
-        """``cfg`` with its problem-sized fields (leaf 0, coarse auto) set for this matrix and its near null vectors
-        (:mod:`.sizing`)."""
-        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N),
-                                   coarse=sizing.coarse_space(self.dim, self.fixed) if cfg.coarse == "auto" else cfg.coarse)
+    def resolved(self, cfg, bare):
+        """``cfg`` with its problem-sized fields (leaf 0, coarse and aggregation auto) set for this matrix, ``bare``
+        (no coordinates: 'auto' ordering makes aggregation leaves) and its near null vectors (:mod:`.sizing`)."""
+        second = (cfg.aggregation if cfg.aggregation != "auto"
+                  else sizing.aggregation(self.dim, self.fixed, self.per_row))
+        paired = second == "pairs" and (cfg.ordering == "aggregation" or (cfg.ordering == "auto" and bare))
+        coarse = sizing.coarse_space(self.dim, self.fixed, paired) if cfg.coarse == "auto" else cfg.coarse
+        return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
+                                   aggregation=second)
 
     def _weak_inside(self, data) -> int:
         """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
@@ -142,7 +148,7 @@ class Structure:
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
         self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind,
-                                            self.fixed)
+                                            self.fixed, lead + 1)
         order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
