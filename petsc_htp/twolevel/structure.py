@@ -54,6 +54,8 @@ class Structure:
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         self.cfg = cfg = self.resolved(cfg, coords is None)
         self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation)
+        if cfg.coarse != "learned":          # only the network reads the block again; on one rank it is a view of
+            self.block = None                # the Mat's arrays, not to be kept, on several a copy of the rank's rows
         self.lay = layout(rows, start, self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
