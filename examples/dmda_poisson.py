@@ -8,7 +8,9 @@
 ``-n`` sets the grid side (256), ``-dim 3`` a 3-D grid. The matrix is handed over bare (no coordinates, no density, no
 null space): the conductivity is 1 with discs (balls) of conductivity ``-contrast`` (1000), harmonic means on the
 faces, homogeneous Dirichlet boundaries (in 2-D :func:`petsc_htp.scenes.gallery.variable_poisson` builds the same
-matrix). In 3-D each rank sets its own rows by whole arrays (a loop over two million cells would take minutes). ``-warmup`` solves a smaller problem
+matrix). In 3-D each rank sets its own rows by whole arrays (a loop over two million cells would take minutes).
+``-scale_rows S`` hands over D A D instead, D a random diagonal scaling in 10^-S .. 10^S (unknowns in mixed
+units; the right-hand side scaled alike). ``-warmup`` solves a smaller problem
 first, so that one-time costs (Python imports, first calls) are not in the timed solve. Prints the
 iterations, PETSc's reason, the setup (KSPSetUp: the preconditioner's analysis and factorisation) and
 solve milliseconds, and the true relative residual; exits non-zero when the solve did not converge.
@@ -88,13 +90,21 @@ def assemble_3d(da, contrast, seed):
     return A
 
 
-def solve(n, contrast, seed, dim=2):
-    """Assemble and solve once; (iterations, reason, setup ms, solve ms, true relative residual)."""
+def solve(n, contrast, seed, dim=2, scale=0.0):
+    """Assemble (scaled to D A D by 10^U(-scale, scale) per row where ``scale`` > 0) and solve once; (iterations,
+    reason, setup ms, solve ms, true relative residual)."""
     da = PETSc.DMDA().create([n] * dim, stencil_width=1, stencil_type=PETSc.DMDA.StencilType.STAR)
     da.setUp()
     A = assemble(da, contrast, seed) if dim == 2 else assemble_3d(da, contrast, seed)
     b = A.createVecLeft()
     b.set(1.0 / float(np.prod(da.getSizes())))
+    if scale > 0:
+        d = b.duplicate()
+        start, end = d.getOwnershipRange()
+        d.setArray(10.0 ** np.random.default_rng(seed).uniform(-scale, scale, d.getSize())[start:end])
+        A.diagonalScale(d, d)
+        b.pointwiseMult(b, d)
+        d.destroy()
     x = b.duplicate()
     ksp = PETSc.KSP().create()
     ksp.setOperators(A, A)
@@ -116,11 +126,12 @@ def solve(n, contrast, seed, dim=2):
 def main():
     db = PETSc.Options()
     contrast, seed, dim = db.getReal("contrast", 1000.0), db.getInt("seed", 0), db.getInt("dim", 2)
+    scale = db.getReal("scale_rows", 0.0)
     if dim not in (2, 3):
         raise SystemExit(f"-dim must be 2 or 3, got {dim}")
     if db.getBool("warmup", False):
-        solve(32 if dim == 2 else 12, contrast, seed + 1, dim)
-    its, reason, setup, solve_ms, relres = solve(db.getInt("n", 256), contrast, seed, dim)
+        solve(32 if dim == 2 else 12, contrast, seed + 1, dim, scale)
+    its, reason, setup, solve_ms, relres = solve(db.getInt("n", 256), contrast, seed, dim, scale)
     PETSc.Sys.Print(f"iterations: {its}\nconverged reason: {reason}\nsetup ms (KSPSetUp): {setup:.1f}\n"
                     f"solve ms: {solve_ms:.1f}\ntrue relative residual ||b - A x|| / ||b||: {relres:.3e}")
     return 0 if reason > 0 else 1

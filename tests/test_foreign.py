@@ -333,6 +333,38 @@ def test_a_large_2d_coarse_operator_on_two_ranks_gets_a_distributed_v_cycle_in_t
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
+def test_a_row_scaled_operator_takes_scaled_piece_vectors(ranks):
+    """examples/dmda_poisson.py -scale_rows 2: D A D with D in 1e-2 .. 1e2 per row, whose near null space is D^-1 1:
+    the pieces take |diag|^-1/2 (the quotients agree on every rank) and CG keeps its iterations (389 with the piece
+    constants at 200^2); the unscaled operator keeps its constants."""
+    for flags, scaled in ((("-scale_rows", "2"), True), ((), False)):
+        proc = _mpirun(ranks, EXAMPLE, "-n", "120", "-contrast", "1", *flags, *HTPPC_FLAGS)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        its = int(proc.stdout.split("iterations:")[1].split()[0])
+        relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+        assert its <= 40 and relres <= 1.01e-8, proc.stdout
+        assert ("pieces take |diag|^-1/2 in place of their constants" in proc.stdout) == scaled, proc.stdout
+
+
+def test_scaling_quotients_tell_the_smoother_piece_vector():
+    """scaling.weights: z = |diag|^-1/2 where D A D makes it far smoother than the constant; None for A itself, for
+    coefficient jumps (z rough across them) and for a singular Neumann matrix (the constant's quotient is 0)."""
+    from petsc_htp.collective import Collective
+    from petsc_htp.twolevel import scaling
+
+    coll = Collective(PETSc.COMM_SELF)
+    A, _ = foreign.dmda(2, 60)
+    d = 10.0 ** np.random.default_rng(0).uniform(-2, 2, A.shape[0])
+    z, (one, rough) = scaling.weights((sp.diags(d) @ A @ sp.diags(d)).tocsr(), 0, coll)
+    assert z is not None and rough < scaling.RATIO * one
+    ratio = z * d
+    coupled = ~decoupled_rows(A)
+    assert np.ptp(ratio[coupled & (np.abs(A.diagonal()) == 4)]) < 1e-12       # z is D^-1 1 where A's diagonal is 4
+    for M in (A, CASES["lognormal"](3600, 0)[0], CASES["neumann"](3600, 0)[0]):
+        assert scaling.weights(M, 0, coll)[0] is None
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ranks):
     """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (the same operator as the
     balls' 7-point stencil in natural order, checked by a product on every rank: tests/dmda3d_case.py), and HTPPC

@@ -60,16 +60,21 @@ def piece_constants(lay, index=None) -> np.ndarray:
     return P.reshape(K, L, -1)
 
 
-def flat(y, leaf, pieces) -> tuple:
+def flat(y, leaf, pieces, weights=None) -> tuple:
     """The one eig vector of every leaf (q = 1, no extras) without the padded layout, as :func:`basis` makes it:
     ``y`` (n,) in the leaves' order made orthogonal to the constants of the leaf's pieces (its mean on each piece
-    taken out; a piece of one row, such as a decoupled row, becomes zero), then normalised per leaf twice (the
-    second pass removes the first's rounding); a leaf where less than :data:`DEPENDENT` of its norm is left gets
-    none.
+    taken out; a piece of one row, such as a decoupled row, becomes zero), or to the pieces' ``weights`` (n,) where
+    they replace the constants (:mod:`.scaling`), then normalised per leaf twice (the second pass removes the
+    first's rounding); a leaf where less than :data:`DEPENDENT` of its norm is left gets none.
 
     Returns (the vector, whether each leaf kept one)."""
     scale = np.sqrt(np.bincount(leaf, y * y, minlength=pieces.count.size))
-    y = y - (np.bincount(pieces.label, y, minlength=pieces.size.size) / np.maximum(pieces.size, 1))[pieces.label]
+    if weights is None:
+        y = y - (np.bincount(pieces.label, y, minlength=pieces.size.size) / np.maximum(pieces.size, 1))[pieces.label]
+    else:
+        w2 = np.bincount(pieces.label, weights * weights, minlength=pieces.size.size)
+        y = y - (np.bincount(pieces.label, y * weights, minlength=pieces.size.size) / np.maximum(w2, 1e-300))[
+            pieces.label] * weights
     ok = np.ones(scale.size, dtype=bool)
     floor = DEPENDENT * scale
     for _ in range(2):

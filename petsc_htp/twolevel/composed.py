@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from . import inner, nearnull, nullspace, sizing
+from . import inner, nearnull, nullspace, scaling, sizing
 from ..checks import rayleigh_reason
 from ..events import phase
 from .coarsesolve import CoarseSolve
@@ -53,7 +53,7 @@ class TwoLevelPC:
 
     def __init__(self, mat, rows, coords, cfg, prefix="htp_", net=None):
         self.leafsolver = self.space = self.ops = self.coarse = self.forms = None
-        self.times, self.numeric_count = {}, 0
+        self.times, self.numeric_count, self.quotients = {}, 0, None
         try:
             self._analyse(mat, rows, coords, cfg, prefix, net)
         except Exception:
@@ -104,8 +104,11 @@ class TwoLevelPC:
         with phase("HTPCoarseSpace", T, "coarse_space"):
             try:
                 if new_space:
+                    weights = None
+                    if self.space.flat:
+                        weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
-                                       self._seeds(rows, density), nearnull.vectors(self.mat))
+                                       self._seeds(rows, density), nearnull.vectors(self.mat), weights)
                 else:
                     self.space.age += 1
             finally:
@@ -188,7 +191,10 @@ class TwoLevelPC:
                 + (f" (up to {st.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if st.extra else "")
                 + f"; global size {st.m}, {sp.null_components} null component(s) left out"
-                + (f"; space kept from {sp.age} numeric setup{'s' if sp.age > 1 else ''} ago" if sp.age else ""),
+                + (f"; space kept from {sp.age} numeric setup{'s' if sp.age > 1 else ''} ago" if sp.age else "")
+                + (f"; pieces take |diag|^-1/2 in place of their constants (a row-scaled operator: Rayleigh quotient "
+                   f"{self.quotients[1]:.2g} against the constant's {self.quotients[0]:.2g})"
+                   if sp.weights is not None else ""),
                 self.coarse.describe(),
                 f"form: {form} (" + ("y = v - W E^-1 C^T v, v = B x; started so that W^T r0 = 0"
                                      if form == "deflated" else "symmetric balanced form") + ")",

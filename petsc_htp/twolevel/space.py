@@ -7,7 +7,8 @@ diagonal: with exact or incomplete leaf solves it borrows the leaf solver's matr
 factor, solve, D's diagonal back; the leaf solver factors D after), which saves a matrix and a factor of the
 rank's size (about 90 MiB at 1M rows in 2-D). Aggregation leaves with at most one such vector
 take it in numpy without the padded layout (:func:`.coarsespace.flat`); other leaves go through the padded basis
-(:func:`.coarsespace.basis`).
+(:func:`.coarsespace.basis`). On the flat layout a row-scaled operator's pieces take |diag|^-1/2 in place of
+their constants (:mod:`.scaling`).
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ class CoarseSpace:
         lay = st.lay
         self.st, self.values = st, np.zeros(st.w_p.size)
         self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
+        self.weights = None                  # the flat space's piece vectors where they are not the constants
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
         if self.flat:
             self.lead_mask = st.w_j < st.lead
@@ -77,13 +79,15 @@ class CoarseSpace:
         self.null_components = int(null.sum())
         return st.my_pieces(ground)
 
-    def compute(self, d_values, o_values, o_rows, seeds=None, near=None):
+    def compute(self, d_values, o_values, o_rows, seeds=None, near=None, weights=None):
         """New coarse vectors from D's values and the couplings ``o_values`` (rows ``o_rows``, leaves' order);
         ``seeds`` replaces the smooth seeds (learned space); ``near`` (n, fixed), the near null vectors in A's row
-        order (:mod:`.nearnull`). With a borrowed factor, D's values come back as they were but its factor holds
+        order (:mod:`.nearnull`); ``weights`` (n, A's row order), the flat space's piece vectors in place of the
+        constants (:mod:`.scaling`). With a borrowed factor, D's values come back as they were but its factor holds
         S's: the leaf solver factors D after this."""
         lay = self.st.lay
         near = None if near is None else near[lay.perm]
+        self.weights = None if weights is None or not self.flat else weights[lay.perm]
         if not self.st.seeded:
             return self._fill(None, None, near)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
@@ -114,7 +118,7 @@ class CoarseSpace:
             self._constants()
             self.kept = st.ncols
             if st.q:
-                y, ok = coarsespace.flat(self.solve_neumann(seeds)[:, 0], lay.leaf, lay.pieces)
+                y, ok = coarsespace.flat(self.solve_neumann(seeds)[:, 0], lay.leaf, lay.pieces, self.weights)
                 self.values[self.lead_mask] = y[st.w_p[self.lead_mask]]
                 self.kept = st.ncols - ((st.ncols > 0) & ~ok)
             return
@@ -123,12 +127,18 @@ class CoarseSpace:
         np.take(P.reshape(-1), self.src, out=self.values)
 
     def _constants(self):
-        """W's values of the flat space: each piece's constant 1 / sqrt(size) in its own column, zeros elsewhere
-        (made each time, not held: 16 MB at 1M rows)."""
+        """W's values of the flat space: each piece's constant 1 / sqrt(size), or its :attr:`weights` normalised,
+        in its own column, zeros elsewhere (made each time, not held: 16 MB at 1M rows)."""
         st, lay = self.st, self.st.lay
         self.values.fill(0.0)
         rows = st.w_p[self.mine]
-        self.values[self.mine] = 1.0 / np.sqrt(lay.pieces.size[lay.pieces.label[rows]])
+        label = lay.pieces.label[rows]
+        if self.weights is None:
+            self.values[self.mine] = 1.0 / np.sqrt(lay.pieces.size[label])
+            return
+        w = self.weights[rows]
+        norm = np.sqrt(np.bincount(label, w * w, minlength=lay.pieces.n_pieces))
+        self.values[self.mine] = w / np.maximum(norm[label], 1e-300)
 
     def finish(self) -> np.ndarray:
         """W's values with the dropped pieces' columns zeroed (a copy only when some are)."""
