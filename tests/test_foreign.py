@@ -335,7 +335,7 @@ def test_a_large_2d_coarse_operator_on_two_ranks_gets_a_distributed_v_cycle_in_t
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_row_scaled_operator_takes_scaled_piece_vectors(ranks):
     """examples/dmda_poisson.py -scale_rows 2: D A D with D in 1e-2 .. 1e2 per row, whose near null space is D^-1 1:
-    the pieces take |diag|^-1/2 (the quotients agree on every rank) and CG keeps its iterations (389 with the piece
+    the pieces take |diag|^-1/2 (the quotients summed over the ranks) and CG keeps its iterations (389 with the piece
     constants at 200^2); the unscaled operator keeps its constants."""
     for flags, scaled in ((("-scale_rows", "2"), True), ((), False)):
         proc = _mpirun(ranks, EXAMPLE, "-n", "120", "-contrast", "1", *flags, *HTPPC_FLAGS)

@@ -344,8 +344,9 @@ def test_torch_and_petsc_back_ends_agree_on_every_stability_case(coarse, leaf, r
         if prob.attach:
             petsc_htp.attach(mat, coords=frame.coords, density=frame.rho)
         reason, its, _, _ = solve(mat, frame.b, htp_coarse=coarse, htp_leaf=leaf, htp_coarse_rank=rank,
-                                  ksp_rtol=rtol, htp_form="balanced", htp_aggregation="standard")     # torch's leaves     # torch's form (the deflated one
-        # stagnates near 1.7e-8 at contrast 1e6 with the null space attached, then stops on DIVERGED_INDEFINITE_PC)
+                                  ksp_rtol=rtol, htp_form="balanced", htp_aggregation="standard")
+        # torch's leaves and torch's form (the deflated one stagnates near 1.7e-8 at contrast 1e6 with the null space
+        # attached, then stops on DIVERGED_INDEFINITE_PC)
         assert torch_res.reason == "converged" and reason > 0, (prob.case, torch_res.reason, reason_name(reason))
         assert abs(its - torch_res.iterations) <= 1, (prob.case, its, torch_res.iterations)
 

@@ -69,7 +69,8 @@ def pairs(M, theta=PAIR_THETA) -> tuple:
     rows = np.repeat(np.arange(n), np.diff(M.indptr))
     off = rows != M.indices
     outside = np.bincount(rows[off], M.data[off], minlength=n)
-    share = M.data / np.maximum(np.sqrt(outside[rows] * outside[M.indices]), np.finfo(float).tiny)
+    root = np.sqrt(outside)                                          # each root first: no overflow at any scale
+    share = M.data / np.maximum(root[rows] * root[M.indices], np.finfo(float).tiny)
     strong = off & (share >= theta)
     S = sp.csr_matrix((share[strong], M.indices[strong], np.concatenate(([0], np.cumsum(np.bincount(
         rows[strong], minlength=n))))), shape=M.shape)

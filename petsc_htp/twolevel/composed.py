@@ -105,7 +105,7 @@ class TwoLevelPC:
             try:
                 if new_space:
                     weights = None
-                    if self.space.flat:
+                    if self.space.flat and not self.space.null_components:    # a null constant stays
                         weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density), nearnull.vectors(self.mat), weights)

@@ -14,32 +14,35 @@ z whatever the scaling. PETSc-free.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 
 
 def quotients(rows, start, coll) -> tuple:
-    """(the constant's, z's) Rayleigh quotients over all ranks, from this rank's ``rows`` (CSR, global columns,
-    local rows ``start`` ...; couplings to other ranks' rows left out) and its diagonal."""
+    """(the constant's quotient, z's quotient, z) with z = |diag|^-1/2 on this rank's ``rows`` (CSR, global columns,
+    local rows ``start`` ...; couplings to other ranks' rows and decoupled rows left out); the quotients are sums
+    over all ranks (collective)."""
     n = rows.shape[0]
     diag = np.abs(rows.diagonal(k=start))
     z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
     stored = np.concatenate(([0], np.cumsum(rows.data != 0)))
     coupled = (stored[rows.indptr[1:]] - stored[rows.indptr[:-1]] - (diag != 0)) > 0
+    local = rows
+    if rows.shape[1] != n:                                      # this rank's columns only, by compiled products
+        col = rows.indices - start
+        inside = (col >= 0) & (col < n)
+        local = sp.csr_matrix((np.where(inside, rows.data, 0.0), np.where(inside, col, 0), rows.indptr), shape=(n, n))
     sums = np.zeros(4)
     for i, v in enumerate((coupled.astype(np.float64), z * coupled)):
-        full = np.zeros(rows.shape[1])
-        full[start:start + n] = v
-        sums[2 * i:2 * i + 2] = v @ (rows @ full), v @ (diag * v)
+        sums[2 * i:2 * i + 2] = v @ (local @ v), v @ (diag * v)
     sums = coll.sum_array(sums)
-    return tuple(float(a / b) if b > 0 else 0.0 for a, b in (sums[:2], sums[2:]))
+    one, rough = (float(a / b) if b > 0 else 0.0 for a, b in (sums[:2], sums[2:]))
+    return one, rough, z
 
 
 def weights(rows, start, coll):
-    """z = |diag(A)|^-1/2 on this rank's rows where it is the smoother vector (see the module docstring), with the
-    two quotients; else (None, quotients). Collective."""
-    q = quotients(rows, start, coll)
-    if q[1] >= RATIO * q[0]:
-        return None, q
-    diag = np.abs(rows.diagonal(k=start))
-    return 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0)), q
+    """(z, (the constant's quotient, z's)) where z = |diag(A)|^-1/2 is the smoother vector on this rank's rows (see
+    the module docstring), else (None, the quotients). Collective."""
+    one, rough, z = quotients(rows, start, coll)
+    return (z if rough < RATIO * one else None), (one, rough)

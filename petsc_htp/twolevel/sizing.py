@@ -66,16 +66,18 @@ def coarse_space(dim, near, paired=False) -> str:
     return "const" if near or paired else COARSE[dim]
 
 
-def aggregation(dim, near, per_row) -> str:
+def aggregation(dim, near, per_row, coarse="auto") -> str:
     """The kind of the aggregation passes after the first (:mod:`.aggregation`): 'pairs' in 2-D where rows hold at
-    most :data:`RICH_ROW` stored entries (5-point stencils) and the operator brings no near null vectors
-    (``near``), else 'standard'. There leaves of paired aggregates (3-17 rows) with the const space cost less
+    most :data:`RICH_ROW` stored entries (5-point stencils), the operator brings no near null vectors (``near``)
+    and the coarse space is ``auto`` or ``const`` (an eig or learned space chosen by the user keeps the leaves it
+    was measured on), else 'standard'. There leaves of paired aggregates (3-17 rows) with the const space cost less
     than standard ones (10-40 rows) with the eig space, in about the same CG iterations, as their coarse LU is
     scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README). Where
     rows are richer (9-point stencils, P1 triangles) the const space on them takes far more iterations (rotated
     anisotropy: 110-207 against 40-61) and the eig space on them a coarse LU of 1.5 times the rows at twice the
     cost of the standard leaves' (the same study)."""
-    return "pairs" if dim == 2 and not near and per_row <= RICH_ROW else "standard"
+    paired = dim == 2 and not near and per_row <= RICH_ROW and coarse in ("auto", "const")
+    return "pairs" if paired else "standard"
 
 
 def dimension(coords_dim, shape) -> int:
@@ -148,9 +150,9 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
                   block: int = 2) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
-    it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows in
-    ``block`` > 1 columns per leaf (besides further pieces). A scalar coarse operator (one column per leaf) is ordered as well by PETSc's
-    own orderings: at 512^2 (``examples/dmda_poisson.py -n 512``, 23 000 coarse rows) METIS took 85 ms and the
+    it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows whose
+    leaves take ``block`` > 1 columns per piece. A coarse operator of one column per piece (the const space) is
+    ordered as well by PETSc's own orderings: at 512^2 (``examples/dmda_poisson.py -n 512``, 23 000 coarse rows) METIS took 85 ms and the
     factor in its order 56, against 116 for the factor in PETSc's nested dissection order."""
     lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near) == "lu")
     return lu and rows >= COARSE_METIS_ROWS and block > 1

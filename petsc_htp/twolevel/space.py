@@ -87,7 +87,7 @@ class CoarseSpace:
         S's: the leaf solver factors D after this."""
         lay = self.st.lay
         near = None if near is None else near[lay.perm]
-        self.weights = None if weights is None or not self.flat else weights[lay.perm]
+        self.weights = None if weights is None else weights[lay.perm]
         if not self.st.seeded:
             return self._fill(None, None, near)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S

@@ -79,7 +79,7 @@ class Structure:
         """``cfg`` with its problem-sized fields (leaf 0, coarse and aggregation auto) set for this matrix, ``bare``
         (no coordinates: 'auto' ordering makes aggregation leaves) and its near null vectors (:mod:`.sizing`)."""
         second = (cfg.aggregation if cfg.aggregation != "auto"
-                  else sizing.aggregation(self.dim, self.fixed, self.per_row))
+                  else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse))
         paired = second == "pairs" and (cfg.ordering == "aggregation" or (cfg.ordering == "auto" and bare))
         coarse = sizing.coarse_space(self.dim, self.fixed, paired) if cfg.coarse == "auto" else cfg.coarse
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
