@@ -29,14 +29,13 @@ HELP = {
                 "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
     "aggregation": "twolevel aggregation leaves only: the passes after the first, auto (pairs, with the const "
                    "space, in 2-D where rows hold at most 5.5 entries on average, the Mat has no block size or near "
-                   "null space and -htp_coarse is auto or const; else standard), standard (aggregates of aggregates: 10-40 rows) or pairs (aggregates "
-                   "matched in pairs: 3-17 rows)",
+                   "null space and -htp_coarse is auto or const; else standard), standard (aggregates of "
+                   "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D, const on paired aggregates; const, with ICC(0) leaf solves, "
-              "in 3-D; const where the Mat "
-              "has a block size or a near null space, whose vectors every leaf takes too), const (r=1), eig "
-              "(local Neumann eigenvectors) or learned (network)",
+              "in 3-D; const where the Mat has a block size or a near null space, whose vectors every leaf takes "
+              "too), const (r=1), eig (local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r: each piece's constant and r - 1 more (eig; learned takes "
                    "the network's r)",

@@ -9,8 +9,8 @@ the first match the aggregates in pairs instead (Notay's pairwise matching, ``am
 each pair's share of both aggregates' outside couplings: :func:`pairs`): leaves of 3-17 rows. The share's threshold
 :data:`PAIR_THETA` sits just below a regular aggregate's share with each of its four neighbours, 1/4 (above it no
 pairs form): the foreign study's 5-point cases at 64k rows took 33/29/32/28 CG iterations at 0.24 against
-34/30/33/30 at 0.2, and the DMDA program at 1024^2 37 against 39, with the same leaves' sizes. Everything is O(nnz) and compiled (the
-kernels and scipy's sparse conversions): no Python loop over rows.
+34/30/33/30 at 0.2, and the DMDA program at 1024^2 37 against 39, with the same leaves' sizes. Everything is
+O(nnz) and compiled (the kernels and scipy's sparse conversions): no Python loop over rows.
 
 Rows are treated by what couples them:
 
@@ -33,11 +33,11 @@ PAIR_THETA = 0.24       # share of both aggregates' outside couplings that makes
 SECOND = ("standard", "pairs")   # kinds of the passes after the first
 
 
-def decoupled_rows(A) -> np.ndarray:
-    """Boolean (n,): rows of a square CSR ``A`` with no nonzero off-diagonal entry."""
-    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-    coupled = (A.data != 0) & (A.indices != rows)
-    return np.bincount(rows[coupled], minlength=A.shape[0]) == 0
+def decoupled_rows(A, start=0) -> np.ndarray:
+    """Boolean (n,): rows of a CSR ``A`` (its diagonal in column ``start`` + row: a rank's rows with global
+    columns) with no nonzero off-diagonal entry."""
+    stored = np.concatenate(([0], np.cumsum(A.data != 0)))              # nonzeros before each entry
+    return stored[A.indptr[1:]] - stored[A.indptr[:-1]] - (A.diagonal(k=start) != 0) == 0
 
 
 def strength(A, theta=THETA) -> sp.csr_matrix:

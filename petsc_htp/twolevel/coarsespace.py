@@ -69,12 +69,9 @@ def flat(y, leaf, pieces, weights=None) -> tuple:
 
     Returns (the vector, whether each leaf kept one)."""
     scale = np.sqrt(np.bincount(leaf, y * y, minlength=pieces.count.size))
-    if weights is None:
-        y = y - (np.bincount(pieces.label, y, minlength=pieces.size.size) / np.maximum(pieces.size, 1))[pieces.label]
-    else:
-        w2 = np.bincount(pieces.label, weights * weights, minlength=pieces.size.size)
-        y = y - (np.bincount(pieces.label, y * weights, minlength=pieces.size.size) / np.maximum(w2, 1e-300))[
-            pieces.label] * weights
+    w = 1.0 if weights is None else weights
+    w2 = pieces.size if weights is None else np.bincount(pieces.label, w * w, minlength=pieces.size.size)
+    y = y - (np.bincount(pieces.label, y * w, minlength=pieces.size.size) / np.maximum(w2, 1e-300))[pieces.label] * w
     ok = np.ones(scale.size, dtype=bool)
     floor = DEPENDENT * scale
     for _ in range(2):

@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .aggregation import decoupled_rows
+
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 
 
@@ -26,8 +28,7 @@ def quotients(rows, start, coll) -> tuple:
     n = rows.shape[0]
     diag = np.abs(rows.diagonal(k=start))
     z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
-    stored = np.concatenate(([0], np.cumsum(rows.data != 0)))
-    coupled = (stored[rows.indptr[1:]] - stored[rows.indptr[:-1]] - (diag != 0)) > 0
+    coupled = ~decoupled_rows(rows, start)
     local = rows
     if rows.shape[1] != n:                                      # this rank's columns only, by compiled products
         col = rows.indices - start

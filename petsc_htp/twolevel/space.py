@@ -133,12 +133,9 @@ class CoarseSpace:
         self.values.fill(0.0)
         rows = st.w_p[self.mine]
         label = lay.pieces.label[rows]
-        if self.weights is None:
-            self.values[self.mine] = 1.0 / np.sqrt(lay.pieces.size[label])
-            return
-        w = self.weights[rows]
-        norm = np.sqrt(np.bincount(label, w * w, minlength=lay.pieces.n_pieces))
-        self.values[self.mine] = w / np.maximum(norm[label], 1e-300)
+        w = 1.0 if self.weights is None else self.weights[rows]
+        w2 = lay.pieces.size if self.weights is None else np.bincount(label, w * w, minlength=lay.pieces.n_pieces)
+        self.values[self.mine] = w / np.sqrt(np.maximum(w2[label], 1e-300))
 
     def finish(self) -> np.ndarray:
         """W's values with the dropped pieces' columns zeroed (a copy only when some are)."""
