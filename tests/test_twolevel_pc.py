@@ -554,8 +554,8 @@ def test_gamg_coarse_solver_converges_and_is_viewed(cube, tmp_path):
 def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     """From COARSE_METIS_ROWS coarse rows the leaves' coarse columns come in METIS's nested-dissection
     order and the LU keeps it: the same coarse operator permuted (same values; at this small size about the same fill), the same
-    iterations; never for a GAMG coarse solve (two ranks: test_mpi), nor for one column per leaf (the default's
-    paired aggregates with the const space), which PETSc's own ordering serves."""
+    iterations; never for a GAMG coarse solve (two ranks: test_mpi); for one column per leaf (the default's paired
+    aggregates with the const space) only from COARSE_METIS_SCALAR_ROWS, below which PETSc's own ordering serves."""
     from petsc_htp.scenes import foreign
 
     A, b = foreign.dmda(2, 120)
@@ -572,8 +572,12 @@ def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     (its0, d0, nz0, f0, o0), (its1, d1, nz1, f1, o1) = runs[10 ** 9], runs[0]
     assert (o0, o1) == (False, True) and abs(its0 - its1) <= 1 and nz0 == nz1 and f1 <= 1.1 * f0, runs
     np.testing.assert_allclose(d0, d1, rtol=1e-12)
-    reason, _, _, scalar = solve(mat, b)
+    reason, its2, _, scalar = solve(mat, b)
     assert reason > 0 and not scalar.getPC().getPythonContext().setup.st.ordered
+    monkeypatch.setattr(sizing, "COARSE_METIS_SCALAR_ROWS", 0)
+    reason, its3, relres, scalar = solve(mat, b)
+    assert reason > 0 and relres <= 1.01e-8 and abs(its3 - its2) <= 1
+    assert scalar.getPC().getPythonContext().setup.st.ordered
     viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
     ksp.view(viewer)
     viewer.destroy()
@@ -674,3 +678,37 @@ def test_an_ill_conditioned_coarse_lu_is_refined_and_taken_by_the_balanced_form(
             assert setup.coarse.error > 1e-6 and setup.coarse.refine == 2
             assert setup.forms.form() == "balanced"
             assert "2 refinement step(s) (forward error" in "\n".join(setup.describe())
+
+
+def test_a_one_rank_pattern_takes_values_in_the_order_given_like_petsc_coo():
+    """On one rank O and W are SeqAIJs on CSR arrays whose values are written in place (no COO maps); entries given
+    out of CSR order land where PETSc's COO assembly puts them, frame after frame, with the column block size."""
+    from petsc_htp.twolevel.operators import Pattern, coo_aij
+
+    rng = np.random.default_rng(3)
+    dense = (rng.random((7, 6)) < 0.4) * 1.0
+    rows, cols = np.nonzero(dense)
+    shuffle = rng.permutation(rows.size)
+    rows, cols = rows[shuffle], cols[shuffle]
+    ours = Pattern(PETSc.COMM_SELF, rows, cols, (7, 6), (7, 6), col_block=2)
+    ref = coo_aij(PETSc.COMM_SELF, rows, cols, (7, 6), (7, 6), col_block=2)
+    assert ours.order is not None and ours.mat.getBlockSizes() == (1, 2)
+    for _ in range(2):
+        values = rng.standard_normal(rows.size)
+        ours.set(values)
+        ref.setValuesCOO(values)
+        np.testing.assert_array_equal(ours.mat[:, :], ref[:, :])
+        expect = np.zeros((7, 6))
+        expect[rows, cols] = values
+        np.testing.assert_array_equal(ours.mat[:, :], expect)
+    for m in (ours.mat, ref):
+        m.destroy()
+
+
+def test_row_sums_follow_the_stored_order_and_give_zero_for_empty_rows():
+    """csr.row_sums: each row's sum with no per-entry row array, 0 for a row that stores nothing (also the last)."""
+    from petsc_htp.twolevel.csr import row_sums
+
+    A = sp.csr_matrix(np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 5.0], [0.0, 0.0, 0.0]]))
+    np.testing.assert_array_equal(row_sums(A.indptr, A.data), [0.0, 0.0, 7.0, 0.0])
+    np.testing.assert_array_equal(row_sums(np.array([0]), np.zeros(0)), np.zeros(0))

@@ -23,6 +23,7 @@ import torch
 from ..checks import probe_reason
 from ..ordering import check_square
 from . import coarsespace, nullspace
+from .csr import row_sums
 from .leaflayout import LeafLayout, layout
 from .leaves import Leaves
 
@@ -131,9 +132,10 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
     device = torch.device(device)
     lay = layout(A, 0, leaves)
     (K, L), n = (leaves.n_leaves, leaves.max_size), leaves.n
-    at = lay.pos[lay.iperm]                                     # padded position of each of A's rows
-    pr, pc = at[lay.entry_row], at[A.indices]
+    at = lay.pos[lay.iperm].astype(np.int64)                    # padded position of each of A's rows
+    pr, pc = np.repeat(at, np.diff(A.indptr)), at[A.indices]
     order = np.lexsort((pc, pr))
+    pos = lay.pos.astype(np.int64)
     d_rows = lay.d_leaf_row[np.repeat(np.arange(n), np.diff(lay.d_indptr))]     # leaves' order
     d_cols = lay.d_leaf_row[lay.d_indices]
     n_comp, comp_of_row = nullspace.graph_components(A)
@@ -146,7 +148,7 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
         leaves=leaves, lay=lay, device=device, nnz=A.nnz, pos=as_t(lay.pos), mask=as_t(mask, DTYPE).view(K, L),
         crow=as_t(np.concatenate(([0], np.cumsum(np.bincount(pr, minlength=K * L))))),
         col=as_t(pc[order]), csr_src=as_t(order),
-        in_dst=as_t(lay.pos[d_rows] * L + lay.pos[d_cols] % L), diag_dst=as_t(lay.pos * L + lay.pos % L),
+        in_dst=as_t(pos[d_rows] * L + pos[d_cols] % L), diag_dst=as_t(pos * L + pos % L),
         off_src=as_t(lay.o_src), off_row=as_t(at[lay.o_rows]), off_col=as_t(at[A.indices[lay.o_src]]),
         n_comp=n_comp, comp_of_row=comp_of_row, comp_of_piece=comp_of_piece,
         constants=torch.as_tensor(coarsespace.piece_constants(lay)).to(device), analysis_ms=_ms(t0, device))
@@ -228,10 +230,10 @@ def _spd_inverse(X):
     return inv, shift, count
 
 
-def _null_rule(analysis, A):
+def null_rule(analysis, A):
     """The null components by A's row sums, and the pieces to drop and ground (:mod:`.nullspace`)."""
     lay = analysis.lay
-    rowsum = np.bincount(lay.entry_row, A.data, minlength=lay.n)
+    rowsum = row_sums(A.indptr, A.data)
     null = nullspace.null_by_rowsums(rowsum, A.data[lay.d_src[lay.d_diag]], analysis.comp_of_row, analysis.n_comp)
     drop, ground = nullspace.dropped(null, analysis.comp_of_piece, lay.isolated)
     return null, drop, ground
@@ -445,7 +447,7 @@ def leaf_stage(analysis: TwoLevelAnalysis, A) -> tuple:
     leaf inverses, their note, null components)."""
     data = checked_values(analysis, A)
     A_csr = _csr(analysis, data)
-    null, drop, ground = _null_rule(analysis, A)
+    null, drop, ground = null_rule(analysis, A)
     d_values = _leaf_values(analysis, A, ground)
     blocks = _blocks(analysis, A.data[analysis.lay.d_src])
     leaf_inv, shift, count = _spd_inverse(_blocks(analysis, d_values))
@@ -470,7 +472,7 @@ def coarse_space(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None
     _check_kind(coarse, rank, basis)
     A = check_square(A)
     checked_values(analysis, A)
-    null, drop, ground = _null_rule(analysis, A)
+    null, drop, ground = null_rule(analysis, A)
     P = _coarse_basis(analysis, A, _leaf_values(analysis, A, ground), coarse, rank, basis)
     return dropped_columns(analysis, P, drop).to(analysis.device)
 

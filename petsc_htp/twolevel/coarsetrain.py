@@ -29,7 +29,7 @@ from ..scenes.dataset import load_dataset
 from .leaves import choose_leaves
 from ..training.loss import cosine_loss, n_probes, smoothed_probes
 from ..training.pcg import pcg
-from .batched import TwoLevelAnalysis, dropped_columns, analyse, factor, galerkin, leaf_stage, lifted
+from .batched import TwoLevelAnalysis, dropped_columns, analyse, factor, galerkin, leaf_stage, lifted, null_rule
 from .coarsespace import without
 
 PROBE_STEPS = 30            # probe smoothing steps (see context_loss)
@@ -55,8 +55,7 @@ def make_context(cfg: CoarseConfig, A, leaves, coords=None, density=None, device
     an = analyse(A, leaves, device)
     data, A_t, blocks, _, drop, leaf_inv, _, _ = leaf_stage(an, A)
     lay = an.lay
-    rowsum = np.bincount(lay.entry_row, A.data, minlength=lay.n)
-    null = nullspace.null_by_rowsums(rowsum, A.data[lay.d_src[lay.d_diag]], an.comp_of_row, an.n_comp)
+    null, _, _ = null_rule(an, A)
     rows = np.flatnonzero(null[an.comp_of_row])                       # A's rows in null components
     return Context(an, data, A_t, blocks, leaf_inv, drop, torch.as_tensor(lay.pos[lay.iperm[rows]]),
                    torch.as_tensor(an.comp_of_row[rows]), coarse_input(cfg, an, A, coords, density))

@@ -94,7 +94,7 @@ class TwoLevelPC:
         lay, T, data = self.st.lay, {}, rows.data
         with phase("HTPLeafFactor", T, "leaf"):
             o_values = self.ops.couplings(data)
-            ground = self.space.null(self.mat, data)
+            ground = self.space.null(self.mat, rows)
             np.take(data, lay.d_src, out=self.d_values)
             if ground.any():
                 nullspace.ground(self.d_values, lay.d_diag, nullspace.first_rows(lay.pieces.label, ground))

@@ -13,6 +13,14 @@ def row_entries(indptr, rows) -> tuple:
     return where, np.repeat(np.arange(rows.size), count)
 
 
+def row_sums(indptr, data) -> np.ndarray:
+    """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row), summed in the
+    stored order, with no per-entry row array."""
+    sums = np.add.reduceat(np.append(data, 0.0), indptr[:-1]) if indptr.size > 1 else np.zeros(0)
+    sums[indptr[:-1] == indptr[1:]] = 0.0
+    return sums
+
+
 def compact(a, bound=None) -> np.ndarray:
     """Index array ``a`` as int32 when every value it may hold (below ``bound``, default its size) fits, else as
     int64: the analysis's maps over the nonzeros then take half the memory (a 1M-row 2-D operator: about 80 MiB)."""

@@ -47,8 +47,6 @@ class LeafLayout:
         Leaf of every row in the leaves' order.
     pos : numpy.ndarray (n,)
         Padded position ``k * Lmax + i`` of every row in the leaves' order.
-    entry_row : numpy.ndarray (nnz,)
-        A's local row of every stored entry.
     d_indptr, d_indices : numpy.ndarray
         CSR structure of D (sorted), in A's order or the leaves' (see the module docstring).
     d_src : numpy.ndarray
@@ -57,8 +55,8 @@ class LeafLayout:
         Where each row's diagonal sits in D's values (rows in the leaves' order).
     d_in_a_order : bool
         D's rows are A's local rows in A's order (else the leaves' order).
-    o_src : numpy.ndarray
-        The A.data entries of O (nonzero couplings between leaves), in A's row order.
+    o_src, o_rows : numpy.ndarray
+        The A.data entries of O (nonzero couplings between leaves), in A's row order, and A's local row of each.
     pieces : Pieces
         Pieces of the leaves (rows in the leaves' order).
     isolated : numpy.ndarray of bool (P,)
@@ -74,13 +72,13 @@ class LeafLayout:
     iperm: np.ndarray
     leaf: np.ndarray
     pos: np.ndarray
-    entry_row: np.ndarray
     d_indptr: np.ndarray
     d_indices: np.ndarray
     d_src: np.ndarray
     d_diag: np.ndarray
     d_in_a_order: bool
     o_src: np.ndarray
+    o_rows: np.ndarray
     pieces: Pieces
     isolated: np.ndarray
     decoupled: np.ndarray
@@ -100,11 +98,6 @@ class LeafLayout:
         """The row in the leaves' order of each of D's rows."""
         return self.iperm if self.d_in_a_order else np.arange(self.n)
 
-    @property
-    def o_rows(self) -> np.ndarray:
-        """A's local row of every value of O."""
-        return self.entry_row[self.o_src]
-
 
 def _a_order_pays(perm, leaf, offsets) -> bool:
     """Whether D goes in A's order: every leaf keeps A's order of its rows, and a leaf's rows lie within
@@ -123,10 +116,10 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     if leaves.n != n:
         raise ValueError(f"leaves cover {leaves.n} rows but the rank has {n}")
     perm = leaves.perm
-    iperm = np.empty(n, dtype=np.int64)
+    iperm = np.empty(n, dtype=perm.dtype)
     iperm[perm] = np.arange(n)
-    leaf = np.repeat(np.arange(leaves.n_leaves), leaves.sizes)
-    entry_row = np.repeat(np.arange(n), np.diff(rows.indptr))
+    leaf = compact(np.repeat(np.arange(leaves.n_leaves), leaves.sizes), leaves.n_leaves)
+    entry_row = np.repeat(np.arange(n, dtype=iperm.dtype), np.diff(rows.indptr))
     col = rows.indices.astype(np.int64) - start
     local = (col >= 0) & (col < n)
     nonzero = rows.data != 0
@@ -153,12 +146,13 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
                          "preconditioner needs every diagonal entry stored")
     if in_a_order:
         d_diag = d_diag[perm]                       # by the rows' order in the leaves
-    pos = leaf * leaves.max_size + np.arange(n) - leaves.offsets[leaf]
+    K, L = leaves.n_leaves, leaves.max_size
+    pos = compact(leaf * np.int64(L) + np.arange(n) - leaves.offsets[leaf], K * L)
     pieces = find_pieces(d_indptr, d_cols, leaf, leaves.n_leaves, perm if in_a_order else None)
     o_src = np.flatnonzero(~inside & nonzero & ~diag)
     coupled = np.zeros(pieces.n_pieces, dtype=bool)
     coupled[pieces.label[iperm[entry_row[o_src]]]] = True
     nnz = rows.indptr[-1]
-    return LeafLayout(leaves, start, perm, iperm, leaf, pos, compact(entry_row, n), compact(d_indptr, nnz),
-                      compact(d_cols, n), compact(d_src, nnz), d_diag, in_a_order, compact(o_src, nnz), pieces,
-                      ~coupled, ~coupled & (pieces.size == 1))
+    return LeafLayout(leaves, start, perm, iperm, leaf, pos, compact(d_indptr, nnz), compact(d_cols, n),
+                      compact(d_src, nnz), compact(d_diag, n), in_a_order, compact(o_src, nnz), entry_row[o_src],
+                      pieces, ~coupled, ~coupled & (pieces.size == 1))

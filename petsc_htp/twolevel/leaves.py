@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .aggregation import aggregates
+from .csr import compact
 from .embedding import grid_coordinates
 from ..morton import quantized_morton_codes
 from ..ordering import check_coords, check_square, choose_ordering
@@ -32,7 +33,7 @@ class Leaves:
 
     Attributes
     ----------
-    perm : numpy.ndarray of int64, shape (N,)
+    perm : numpy.ndarray of int32 (int64 from 2^31 rows), shape (N,)
         ``A[perm][:, perm]`` puts each leaf's rows contiguously.
     offsets : numpy.ndarray of int64, shape (K + 1,)
         Leaf k holds permuted rows ``offsets[k]:offsets[k + 1]``.
@@ -56,7 +57,7 @@ class Leaves:
         if offsets.ndim != 1 or offsets.size < 2 or offsets[0] != 0 or offsets[-1] != n \
                 or np.any(np.diff(offsets) <= 0):
             raise ValueError(f"leaves: offsets must rise strictly from 0 to N={n}")
-        object.__setattr__(self, "perm", perm)
+        object.__setattr__(self, "perm", compact(perm, n))
         object.__setattr__(self, "offsets", offsets)
 
     @property

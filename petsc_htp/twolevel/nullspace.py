@@ -17,6 +17,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .csr import compact
+
 NULL_TOL = 1e-10        # |row sum| <= NULL_TOL * max |a_ii| on every row of a component: A 1_c = 0
 
 
@@ -75,8 +77,8 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves, order=None) -> Pieces:
     leaf[label] = leaf_of_row
     count = np.bincount(leaf, minlength=n_leaves)
     first = np.concatenate(([0], np.cumsum(count)[:-1]))
-    return Pieces(label.astype(np.int64), leaf, count, first, np.bincount(label, minlength=n_pieces),
-                  label - first[leaf_of_row])
+    return Pieces(compact(label, n_pieces), leaf, count, first, np.bincount(label, minlength=n_pieces),
+                  compact(label - first[leaf_of_row], n))
 
 
 def graph_components(A) -> tuple:

@@ -1,7 +1,8 @@
 """The two-level method's distributed operators, each with its final pattern from the analysis and its values
 moved in by every numeric step: O = A - D (the couplings between leaves), W (the coarse vectors), C = O W,
 E = W^T A W (the Galerkin coarse operator, lifted on unused columns), and on demand F = W^T C (balanced form
-with exact leaves) and A W (inexact leaves). Products are symbolic once, then numeric with PETSc's reuse.
+with exact leaves) and A W (inexact leaves). Products are symbolic once, then numeric with PETSc's reuse. O and W
+take their values in a fixed order (:class:`Pattern`).
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from petsc4py import PETSc
 from . import coarsespace
 from .csr import compact
 from .inner import scoped
+from .leafsolvers import seqaij
 
 
 def coo_aij(comm, rows, cols, shape, local, col_block=1) -> PETSc.Mat:
@@ -27,6 +29,37 @@ def coo_aij(comm, rows, cols, shape, local, col_block=1) -> PETSc.Mat:
     return mat
 
 
+class Pattern:
+    """A matrix of fixed pattern given by COO entries (global ``rows``, ``cols``) whose values come in that order
+    (:meth:`set`). On one rank a SeqAIJ on CSR arrays held here, its values written in place (PETSc's COO maps
+    would hold two more integers per entry: 42 MB of O's and W's at 1M rows), else PETSc's COO assembly."""
+
+    def __init__(self, comm, rows, cols, shape, local, col_block=1):
+        self.order = self.values = None
+        if comm.getSize() > 1:
+            self.mat = coo_aij(comm, rows, cols, shape, local, col_block)
+            return
+        key = rows.astype(np.int64) * shape[1] + cols
+        if np.any(key[1:] <= key[:-1]):                     # not yet in CSR order
+            self.order = compact(np.argsort(key, kind="stable"), key.size)
+            rows, cols = rows[self.order], cols[self.order]
+        indptr = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=shape[0]))))
+        self.values = np.zeros(rows.size)
+        self.mat = seqaij(indptr, cols, self.values, shape[0], shape[1])
+        self.mat.setBlockSizes(1, col_block)
+
+    def set(self, values):
+        """New values, in the order of the entries given."""
+        if self.values is None:
+            self.mat.setValuesCOO(values)
+            return
+        if self.order is None:
+            np.copyto(self.values, values)
+        else:
+            np.take(values, self.order, out=self.values)
+        self.mat.stateIncrease()
+
+
 class Operators:
     """O, W and their products for one :class:`~.structure.Structure` on the operator ``mat`` (rows: this rank's
     rows, for O's pattern)."""
@@ -37,9 +70,11 @@ class Operators:
         self.mat, self.st = mat, st
         self.o_perm_rows = compact(lay.iperm[lay.o_rows], n)         # O's rows in the leaves' order
         self.W = self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
-        self.O = coo_aij(comm, lay.o_rows.astype(np.int64) + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
+        self._o = Pattern(comm, lay.o_rows.astype(np.int64) + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
+        self.O = self._o.mat
         try:
-            self.W = coo_aij(comm, *st.w_pattern(), (N, st.m), (n, int(st.ncols.sum())), st.col_block)
+            self._w = Pattern(comm, *st.w_pattern(), (N, st.m), (n, int(st.ncols.sum())), st.col_block)
+            self.W = self._w.mat
         except Exception:
             self.destroy()
             raise
@@ -47,13 +82,13 @@ class Operators:
     def couplings(self, data) -> np.ndarray:
         """O's values from A's ``data`` (the analysed pattern), set and returned (not kept: O holds them)."""
         values = np.take(data, self.st.lay.o_src)
-        self.O.setValuesCOO(values)
+        self._o.set(values)
         return values
 
     def products(self, values, exact, need_F):
         """W's ``values``, then C = O W, A W (``exact`` False), E = W^T A W lifted, F = W^T C (``need_F``) and E as
         BAIJ where :meth:`blocked` made it."""
-        self.W.setValuesCOO(values)
+        self._w.set(values)
         first = self.C is None
         self.C = self.O.matMult(self.W, result=self.C)
         if not exact:

@@ -49,6 +49,7 @@ COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_fact
 COARSE_ORDERING = {2: "qmd", 3: "nd"}
 COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
+COARSE_METIS_SCALAR_ROWS = 40000            # ... where leaves take one column per piece (metis_ordered)
 COARSE_DIRECT_MAX = {2: 200000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.05", "pc_gamg_aggressive_coarsening": "0",
@@ -151,11 +152,13 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
                   block: int = 2) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
     it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows whose
-    leaves take ``block`` > 1 columns per piece. A coarse operator of one column per piece (the const space) is
-    ordered as well by PETSc's own orderings: at 512^2 (``examples/dmda_poisson.py -n 512``, 23 000 coarse rows) METIS took 85 ms and the
-    factor in its order 56, against 116 for the factor in PETSc's nested dissection order."""
+    leaves take ``block`` > 1 columns per piece, or :data:`COARSE_METIS_SCALAR_ROWS` rows of one column per piece
+    (the const space), which PETSc's own nested dissection orders as well up to about that size
+    (``examples/dmda_poisson.py -n N -warmup``, 3 runs each, setup + solve ms against that ordering: 512^2, 23 000
+    coarse rows, METIS 769-807 against 742-825; 768^2, 52 000, 1 872-2 070 against 1 997-2 044; 1024^2, 92 000,
+    3 734-3 762 against 3 804-3 837, an LU of 6.1 against 8.3 million values)."""
     lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near) == "lu")
-    return lu and rows >= COARSE_METIS_ROWS and block > 1
+    return lu and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:

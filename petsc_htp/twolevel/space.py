@@ -17,6 +17,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from . import coarsespace, nullspace
+from .csr import row_sums
 from .leafsolvers import seqaij
 
 
@@ -43,7 +44,7 @@ class CoarseSpace:
             self.mine = ~self.lead_mask & (st.w_j - st.lead == st.piece_index[lay.pieces.label[st.w_p]])
         else:
             self.constants = coarsespace.piece_constants(lay, st.piece_index)
-            self.src = lay.pos[st.w_p] * (st.lead + self.constants.shape[2]) + st.w_j
+            self.src = lay.pos[st.w_p].astype(np.int64) * (st.lead + self.constants.shape[2]) + st.w_j
         self.seeds = coarsespace.seeds(lay.leaf, lay.leaves.offsets, lay.leaves.sizes, 1, st.seeded) if st.seeded else None
         self.s_values = self.S = self.S_factor = self.S_csr = self._dense = None
         self._zeroed_key, self.failed = None, PETSc.PC.FailedReason.NOERROR
@@ -61,8 +62,9 @@ class CoarseSpace:
         if st.seeded:
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
 
-    def null(self, mat, data) -> tuple:
-        """Null components (``mat``'s attached MatNullSpace, else A's row sums ``data``), and this rank's pieces
+    def null(self, mat, rows) -> tuple:
+        """Null components (``mat``'s attached MatNullSpace, else the row sums of ``rows``, this rank's rows of A in
+        the analysed pattern), and this rank's pieces
         to ground (a boolean array); the columns of the pieces to drop are kept for :meth:`finish`."""
         st, lay = self.st, self.st.lay
         nsp = mat.getNullSpace()
@@ -71,8 +73,8 @@ class CoarseSpace:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
                                                st.comp_of_row, st.n_comp, reduce)
         else:
-            diag = data[lay.d_src[lay.d_diag]]
-            rowsum = np.bincount(lay.entry_row, data, minlength=lay.n)
+            diag = rows.data[lay.d_src[lay.d_diag]]
+            rowsum = row_sums(rows.indptr, rows.data)
             null = nullspace.null_by_rowsums(rowsum, diag, st.comp_of_row, st.n_comp, reduce)
         drop, ground = nullspace.dropped(null, st.comp_of_piece, st.isolated)
         self.dropped = st.piece_col[st.my_pieces(drop) & st.has_col]

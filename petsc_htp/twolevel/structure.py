@@ -107,7 +107,7 @@ class Structure:
         pc = lay.pieces
         self.piece_offset = coll.exscan(pc.n_pieces)
         self.n_pieces = coll.sum(pc.n_pieces)
-        row_piece = pc.label[lay.iperm] + self.piece_offset          # global piece of each of A's local rows
+        row_piece = pc.label[lay.iperm] + np.int64(self.piece_offset)         # global piece of each of A's local rows
         self.isolated = np.zeros(self.n_pieces, dtype=bool)
         self.isolated[self.piece_offset:self.piece_offset + pc.n_pieces] = lay.isolated
         if coll.size == 1:                                            # A's own components, read off its rows
