@@ -43,5 +43,7 @@ def nested_dissection(G) -> np.ndarray:
 
     if G.shape[0] < 2:
         return np.arange(G.shape[0])
-    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices))
+    # one refinement iteration per level, not ten: at 1024^2 (91 629 leaves) the LU holds 6.12 against 6.09 million
+    # values, and METIS takes about 60 ms less
+    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices), options=pymetis.Options(niter=1))
     return np.asarray(order, dtype=np.int64)

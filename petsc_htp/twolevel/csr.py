@@ -15,9 +15,11 @@ def row_entries(indptr, rows) -> tuple:
 
 def row_sums(indptr, data) -> np.ndarray:
     """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row), summed in the
-    stored order, with no per-entry row array."""
-    sums = np.add.reduceat(np.append(data, 0.0), indptr[:-1]) if indptr.size > 1 else np.zeros(0)
-    sums[indptr[:-1] == indptr[1:]] = 0.0
+    stored order, with no per-entry array."""
+    sums = np.zeros(indptr.size - 1)
+    full = indptr[:-1] < indptr[1:]
+    if full.any():
+        sums[full] = np.add.reduceat(data, indptr[:-1][full])
     return sums
 
 

@@ -110,6 +110,21 @@ def _a_order_pays(perm, leaf, offsets) -> bool:
     return bool(np.median(span) < A_ORDER_SPAN)
 
 
+def _within_leaves(rows, start, entry_row, leaf_of) -> tuple:
+    """(each stored entry's local column, whether it couples two rows of one leaf, whether it is a diagonal entry)
+    of a rank's ``rows`` (global columns) with ``leaf_of`` each local row; on one rank with no masks (every column
+    is local)."""
+    n = rows.shape[0]
+    if start == 0 and rows.shape[1] == n:
+        col = rows.indices
+        return col, leaf_of[entry_row] == leaf_of[col], col == entry_row
+    col = rows.indices.astype(np.int64) - start
+    local = (col >= 0) & (col < n)
+    inside = local.copy()
+    inside[local] = leaf_of[entry_row[local]] == leaf_of[col[local]]
+    return col, inside, local & (col == entry_row)
+
+
 def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     """Index maps of a rank's rows ``rows`` (CSR, sorted, global columns, local rows ``start`` ...) and leaves."""
     n = rows.shape[0]
@@ -120,13 +135,8 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
     iperm[perm] = np.arange(n)
     leaf = compact(np.repeat(np.arange(leaves.n_leaves), leaves.sizes), leaves.n_leaves)
     entry_row = np.repeat(np.arange(n, dtype=iperm.dtype), np.diff(rows.indptr))
-    col = rows.indices.astype(np.int64) - start
-    local = (col >= 0) & (col < n)
+    col, inside, diag = _within_leaves(rows, start, entry_row, leaf[iperm])
     nonzero = rows.data != 0
-    leaf_of = leaf[iperm]
-    inside = local.copy()
-    inside[local] = leaf_of[entry_row[local]] == leaf_of[col[local]]
-    diag = local & (col == entry_row)
     inside &= nonzero | diag
     d_src = np.flatnonzero(inside)
     in_a_order = _a_order_pays(perm, leaf, leaves.offsets)

@@ -52,7 +52,7 @@ class Leaves:
         perm = np.asarray(self.perm, dtype=np.int64)
         offsets = np.asarray(self.offsets, dtype=np.int64)
         n = perm.size
-        if n == 0 or np.any(np.sort(perm) != np.arange(n)):
+        if n == 0 or perm.min() < 0 or perm.max() >= n or np.bincount(perm, minlength=n).max() != 1:
             raise ValueError(f"leaves: perm must be a permutation of 0..N-1 (N >= 1), got size {n}")
         if offsets.ndim != 1 or offsets.size < 2 or offsets[0] != 0 or offsets[-1] != n \
                 or np.any(np.diff(offsets) <= 0):
