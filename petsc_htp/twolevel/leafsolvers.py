@@ -37,9 +37,8 @@ class _Factored:
         self.values, self.gather = values, gather
         self.mat = seqaij(indptr, indices, values, n)
         self.pc = make_pc(self.mat)
-        self.xp, self.vp = np.zeros(n), np.zeros(n)
-        self.xs = PETSc.Vec().createWithArray(self.xp, comm=PETSc.COMM_SELF)
-        self.vs = PETSc.Vec().createWithArray(self.vp, comm=PETSc.COMM_SELF)
+        self.xp = self.vp = self.xs = self.vs = None         # work vectors, made on first use (a factor applied
+        # to the KSP's own vectors needs none: 17 MB at 1M rows)
 
     def refactor(self):
         """Numeric factorisation of the new values."""
@@ -48,6 +47,11 @@ class _Factored:
 
     def solve_rows(self, x):
         """The factor's solve of the gathered rows of the local array ``x`` (a view of a work array)."""
+        if self.xp is None:
+            n = self.mat.getSize()[0]
+            self.xp, self.vp = np.zeros(n), np.zeros(n)
+            self.xs = PETSc.Vec().createWithArray(self.xp, comm=PETSc.COMM_SELF)
+            self.vs = PETSc.Vec().createWithArray(self.vp, comm=PETSc.COMM_SELF)
         if self.gather is None:
             np.copyto(self.xp, x)
         else:
@@ -57,7 +61,8 @@ class _Factored:
 
     def destroy(self):
         for obj in (self.mat, self.pc, self.xs, self.vs):
-            obj.destroy()
+            if obj is not None:
+                obj.destroy()
 
 
 class ExactLeaves:
