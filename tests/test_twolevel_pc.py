@@ -515,7 +515,7 @@ def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
 
 
 def test_coarse_solver_by_the_problem():
-    top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D: the LU up to 200 000 coarse rows on one rank
+    top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D: the LU up to 400 000 coarse rows on one rank
     assert (sizing.coarse_solver(2, top), sizing.coarse_solver(2, top + 1)) == ("lu", "gamg")
     assert sizing.coarse_options(2, False, "gamg")["pc_gamg_aggressive_coarsening"] == "0"
     limit = sizing.COARSE_DIRECT_MAX[3]
