@@ -128,7 +128,8 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     4 415 (39), 2048^2 15 077 (42) against 25 235 (40); one rank, 1024^2 (107 718 coarse rows) 4 513 (40)
     against 4 376 (38), 2048^2 (430 000, the eig space) 23 505 (42) against 27 563 (40); with the paired
     aggregates' scalar coarse operator in METIS's order, 2048^2 (368 000 rows) 22 987 (44) against 20 724 (40),
-    peak RSS 2.33 against 2.51 GB (GAMG tuned: 19 062 ms, 1.75 GB), so the LU serves up to 400 000. An operator with ``near`` > 0 near null
+    peak RSS 2.33 against 2.51 GB (GAMG tuned: 19 062 ms, 1.75 GB; results/scale-20261125g: 20 609 (44) against
+    20 226 (40)), so the LU serves up to 400 000. An operator with ``near`` > 0 near null
     vectors of its own keeps the LU on several ranks too: GAMG's V-cycle does not know the coarse operator's near
     null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations)."""
     limit = COARSE_DIRECT_MAX[dim]
