@@ -99,7 +99,8 @@ def test_near_null_vectors_keep_the_coarse_lu_and_take_the_const_space():
 
     assert sizing.coarse_solver(2, 50_000, 2, "aggregation") == "gamg"
     assert sizing.coarse_solver(2, 50_000, 2, "aggregation", near=2) == "lu"
-    assert sizing.coarse_solver(2, 250_000, 1, "aggregation", near=2) == "gamg"     # past any direct solve
+    past = sizing.COARSE_DIRECT_MAX[2] + 1                                          # past any direct solve
+    assert sizing.coarse_solver(2, past, 1, "aggregation", near=2) == "gamg"
     assert sizing.coarse_space(2, 0) == "eig" and sizing.coarse_space(3, 0) == "const"
     assert sizing.coarse_space(2, 3) == "const"
 
