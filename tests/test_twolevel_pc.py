@@ -517,6 +517,10 @@ def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
 def test_coarse_solver_by_the_problem():
     top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D: the LU up to 400 000 coarse rows on one rank
     assert (sizing.coarse_solver(2, top), sizing.coarse_solver(2, top + 1)) == ("lu", "gamg")
+    several = sizing.COARSE_REDUNDANT_LU_MAX                 # a redundant LU for Morton leaves on several ranks
+    assert (sizing.coarse_solver(2, several, 2, "morton"), sizing.coarse_solver(2, several + 1, 2, "morton")) == (
+        "lu", "gamg")
+    assert sizing.direct_limit(2, 2) == sizing.COARSE_REDUNDANT_MAX < several < top
     assert sizing.coarse_options(2, False, "gamg")["pc_gamg_aggressive_coarsening"] == "0"
     limit = sizing.COARSE_DIRECT_MAX[3]
     assert (sizing.coarse_solver(3, limit), sizing.coarse_solver(3, limit + 1)) == ("lu", "gamg")
@@ -701,14 +705,39 @@ def test_a_one_rank_pattern_takes_values_in_the_order_given_like_petsc_coo():
         expect = np.zeros((7, 6))
         expect[rows, cols] = values
         np.testing.assert_array_equal(ours.mat[:, :], expect)
+    with pytest.raises(ValueError, match="values for a pattern"):
+        ours.set(np.ones(1))
+    with pytest.raises(ValueError, match="must be unique"):
+        Pattern(PETSc.COMM_SELF, np.array([1, 0, 1]), np.array([2, 0, 2]), (3, 3), (3, 3))
     for m in (ours.mat, ref):
         m.destroy()
 
 
-def test_row_sums_follow_the_stored_order_and_give_zero_for_empty_rows():
+def test_row_sums_reduce_each_row_and_give_zero_for_empty_rows():
     """csr.row_sums: each row's sum with no per-entry row array, 0 for a row that stores nothing (also the last)."""
     from petsc_htp.twolevel.csr import row_sums
 
     A = sp.csr_matrix(np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 5.0], [0.0, 0.0, 0.0]]))
     np.testing.assert_array_equal(row_sums(A.indptr, A.data), [0.0, 0.0, 7.0, 0.0])
     np.testing.assert_array_equal(row_sums(np.array([0]), np.zeros(0)), np.zeros(0))
+
+
+def test_pieces_follow_entries_either_way_and_overlap_keeps_int64_keys():
+    """Pieces are weakly connected parts of the leaf blocks even where the pattern holds an entry one way only (the
+    compiled search alone would split them); grown leaves at 300 000 rows (leaf x row keys past int32) add exactly
+    one neighbour row each side of every inner 16-row leaf."""
+    from petsc_htp.twolevel.leaflayout import layout
+    from petsc_htp.twolevel.leafsolvers import OverlappingLeaves
+    from petsc_htp.twolevel.leaves import contiguous_leaves
+    from petsc_htp.twolevel.nullspace import find_pieces
+
+    one_way = sp.csr_matrix(np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 1.0]]))
+    pieces = find_pieces(one_way.indptr, one_way.indices, np.zeros(3, dtype=np.int64), 1)
+    assert pieces.n_pieces == 2 and list(pieces.label) == [0, 1, 0]
+    n, leaf = 300_000, 16
+    A = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    lay = layout(A, 0, contiguous_leaves(n, leaf))
+    factor = lambda m: PETSc.PC().create(PETSc.COMM_SELF)          # noqa: E731  (pattern only: never set up)
+    grown = OverlappingLeaves(lay, A, 1, factor)
+    assert grown.member.size == n + 2 * (n // leaf - 1)
+    grown.destroy()

@@ -3,7 +3,8 @@ A couples them), so the coarse operator comes out ordered and its LU takes the n
 
 On a bare 1024^2 DMDA matrix (106 974 coarse rows in 2x2 blocks) the LU then holds 13.4 against 18.0 million
 values and factors in 648 against 1349 ms under PETSc's nested dissection (QMD: slower still), for 197 ms of
-METIS once per pattern; 74 against 161 ms (QMD) at 27 000 rows for 42 ms of METIS, a loss below about 12 000
+METIS once per pattern (with METIS's default ten refinement iterations per level, now one: see
+:func:`nested_dissection`); 74 against 161 ms (QMD) at 27 000 rows for 42 ms of METIS, a loss below about 12 000
 (:data:`~.sizing.COARSE_METIS_ROWS`; one column per piece: 40 000, :data:`~.sizing.COARSE_METIS_SCALAR_ROWS`).
 
 On several ranks every rank orders its own leaves, those coupled to other ranks' last: in the gathered coarse

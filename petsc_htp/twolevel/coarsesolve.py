@@ -128,11 +128,9 @@ class CoarseSolve:
         why = ""
         if self.chosen:
             st = self.st
-            limit = sizing.COARSE_DIRECT_MAX[st.dim]
-            direct = f"direct up to {limit}"
-            if st.dim == 2 and st.coll.size > 1 and st.leaves.kind == "aggregation":
-                direct = f"direct up to {sizing.COARSE_REDUNDANT_MAX} on several ranks"
-            why = f" (by the problem: {st.m} rows; {direct} in {st.dim}-D)"
+            limit = sizing.direct_limit(st.dim, st.coll.size, st.leaves.kind, st.fixed)
+            several = " on several ranks" if st.dim == 2 and st.coll.size > 1 else ""
+            why = f" (by the problem: {st.m} rows; direct up to {limit}{several} in {st.dim}-D)"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
                   else "")

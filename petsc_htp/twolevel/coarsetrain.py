@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import torch
 
-from . import coarsenet, nullspace
+from . import coarsenet
 from .coarsenet import CoarseConfig, CoarseInput, CoarseNet, coarse_input
 from ..scenes.dataset import load_dataset
 from .leaves import choose_leaves

@@ -14,8 +14,8 @@ def row_entries(indptr, rows) -> tuple:
 
 
 def row_sums(indptr, data) -> np.ndarray:
-    """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row), summed in the
-    stored order, with no per-entry array."""
+    """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row): one reduction
+    per row, with no per-entry array."""
     sums = np.zeros(indptr.size - 1)
     full = indptr[:-1] < indptr[1:]
     if full.any():

@@ -132,7 +132,7 @@ class OverlappingLeaves:
 
     def __init__(self, lay, rows, overlap, make_pc):
         n, start = lay.n, lay.start
-        block, member = lay.leaf.copy(), lay.perm.copy()               # (grown leaf, A's local row) pairs
+        block, member = lay.leaf.astype(np.int64), lay.perm.astype(np.int64)    # (grown leaf, A's local row) pairs
         col = rows.indices.astype(np.int64) - start
         local = (col >= 0) & (col < n) & (rows.data != 0)
         for _ in range(overlap):

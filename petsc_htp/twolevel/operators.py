@@ -47,6 +47,8 @@ class Pattern:
         if np.any(key[1:] <= key[:-1]):                     # not yet in CSR order
             self.order = compact(np.argsort(key, kind="stable"), key.size)
             rows, cols = rows[self.order], cols[self.order]
+            if np.any(np.diff(key[self.order]) == 0):
+                raise ValueError("a pattern's entries must be unique (PETSc's COO assembly would add them)")
         indptr = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=shape[0]))))
         self.values = np.zeros(rows.size)
         self.mat = seqaij(indptr, cols, self.values, shape[0], shape[1])
@@ -57,11 +59,23 @@ class Pattern:
         if self.values is None:
             self.mat.setValuesCOO(values)
             return
+        if values.shape != self.values.shape:
+            raise ValueError(f"{values.size} values for a pattern of {self.values.size} entries")
         if self.order is None:
             np.copyto(self.values, values)
         else:
             np.take(values, self.order, out=self.values)
         self.mat.stateIncrease()
+
+    def take(self, data, src) -> np.ndarray:
+        """New values ``data[src]``, set and returned (on one rank, in CSR order already, the matrix's own array)."""
+        if self.values is not None and self.order is None:
+            np.take(data, src, out=self.values)
+            self.mat.stateIncrease()
+            return self.values
+        values = np.take(data, src)
+        self.set(values)
+        return values
 
 
 class Operators:
@@ -84,10 +98,8 @@ class Operators:
             raise
 
     def couplings(self, data) -> np.ndarray:
-        """O's values from A's ``data`` (the analysed pattern), set and returned (not kept: O holds them)."""
-        values = np.take(data, self.st.lay.o_src)
-        self._o.set(values)
-        return values
+        """O's values from A's ``data`` (the analysed pattern), set and returned (read only: O holds them)."""
+        return self._o.take(data, self.st.lay.o_src)
 
     def products(self, values, exact, need_F):
         """W's ``values``, then C = O W, A W (``exact`` False), E = W^T A W lifted, F = W^T C (``need_F``) and E as

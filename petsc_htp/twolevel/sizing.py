@@ -52,6 +52,7 @@ COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS order
 COARSE_METIS_SCALAR_ROWS = 40000            # ... where leaves take one column per piece (metis_ordered)
 COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
+COARSE_REDUNDANT_LU_MAX = 200000            # ... for Morton leaves and near null vectors, which keep the LU longer
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggressive_coarsening": "0",
                  "mg_levels_ksp_max_it": "3"}            # one V-cycle in the balanced form (coarse_solver)
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
@@ -121,7 +122,7 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
     several ranks (aggregation leaves), and above ``COARSE_DIRECT_MAX[2]`` on one, one distributed GAMG V-cycle
     (:data:`COARSE_AMG_2D`) replaces it, in the balanced form (:func:`coarse_exact`). Morton leaves (the project's
-    own frames, coordinates attached) keep the LU on several ranks up to ``COARSE_DIRECT_MAX[2]``: at 1M rows on 2
+    own frames, coordinates attached) keep the LU on several ranks up to :data:`COARSE_REDUNDANT_LU_MAX`: at 1M rows on 2
     ranks (``examples/poisson_multiphase.py -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22
     iterations and 1.43-1.62 against 1.12-1.47 s (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
     iterations), V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
@@ -132,11 +133,16 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     20 226 (40)), so the LU serves up to 400 000. An operator with ``near`` > 0 near null
     vectors of its own keeps the LU on several ranks too: GAMG's V-cycle does not know the coarse operator's near
     null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations)."""
-    limit = COARSE_DIRECT_MAX[dim]
-    if rows > limit:
-        return "gamg"
-    several = dim == 2 and ranks > 1 and kind == "aggregation" and not near
-    return "gamg" if several and rows > COARSE_REDUNDANT_MAX else "lu"
+    return "lu" if rows <= direct_limit(dim, ranks, kind, near) else "gamg"
+
+
+def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> int:
+    """Coarse rows up to which :func:`coarse_solver` factors the coarse operator: ``COARSE_DIRECT_MAX[dim]`` on one
+    rank or in 3-D; in 2-D on several ranks :data:`COARSE_REDUNDANT_MAX` for aggregation leaves without near null
+    vectors, else :data:`COARSE_REDUNDANT_LU_MAX` (a redundant LU: every rank factors it whole)."""
+    if dim == 3 or ranks == 1:
+        return COARSE_DIRECT_MAX[dim]
+    return COARSE_REDUNDANT_MAX if kind == "aggregation" and not near else COARSE_REDUNDANT_LU_MAX
 
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:

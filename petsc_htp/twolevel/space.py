@@ -62,7 +62,7 @@ class CoarseSpace:
         if st.seeded:
             self.S_csr = sp.csr_matrix((self.s_values, lay.d_indices, lay.d_indptr), shape=(lay.n, lay.n))
 
-    def null(self, mat, rows) -> tuple:
+    def null(self, mat, rows) -> np.ndarray:
         """Null components (``mat``'s attached MatNullSpace, else the row sums of ``rows``, this rank's rows of A in
         the analysed pattern), and this rank's pieces
         to ground (a boolean array); the columns of the pieces to drop are kept for :meth:`finish`."""

@@ -166,7 +166,7 @@ class Structure:
     def w_pattern(self) -> tuple:
         """W's entries as global (rows, columns), made on demand (W's preallocation) and not kept."""
         lay = self.lay
-        return lay.perm[self.w_p] + lay.start, self.w_local_col.astype(np.int64) + self.col_first
+        return lay.perm[self.w_p].astype(np.int64) + lay.start, self.w_local_col.astype(np.int64) + self.col_first
 
     def my_pieces(self, flags) -> np.ndarray:
         """This rank's part of a global per-piece array."""
