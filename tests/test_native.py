@@ -40,7 +40,7 @@ def test_ksp_view_shows_the_inner_solvers_and_log_view_an_event_per_phase(ranks)
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("ranks, args", [(1, ()), (2, ()),                     # LU; PCREDUNDANT on 2 ranks
-                                         (1, ("-htp_coarse_solver", "gamg")),  # one GAMG V-cycle, balanced form
+                                         (1, ("-htp_coarse_solver", "gamg")),  # GAMG V-cycles
                                          (2, ("-case", "dmda3d", "-n", "8000", "-htp_direct_max", "0"))])
 def test_a_setup_leaves_the_options_database_as_it_found_it(ranks, args):
     out = run(ranks, *args)

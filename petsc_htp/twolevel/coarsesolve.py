@@ -2,8 +2,8 @@
 
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
 one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ranks above
-:data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle, in the balanced form where it is not
-exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's
+:data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle (two in 2-D), in the balanced form where
+it is not exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's
 coarse coefficients; with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's
 dmda3d case at 64^3).
 Any PETSc PC can replace it through its options; the PC that was made decides (a direct one is exact and
@@ -40,7 +40,7 @@ class CoarseSolve:
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
-        self.refine, self.error, self.direct, self.general = 0, 0.0, False, False
+        self.refine, self.error, self.direct, self.general, self.cycles = 0, 0.0, False, False, 1
 
     def setup(self, ops):
         """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; an LU, also
@@ -51,12 +51,14 @@ class CoarseSolve:
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)
+            self.cycles = PETSc.Options(self.prefix).getInt("pc_mg_multiplicative_cycles",
+                                                            int(defaults.get("pc_mg_multiplicative_cycles", 1)))
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
                 self.pc.setOperators(ops.blocked(), ops.blocked())
             self.g, self.c, self.c2, self._res, self._dc = (E.createVecLeft() for _ in range(5))
             self.direct = self._direct()                       # the PC the options made, not the solver's name
             self.exact = self.direct or (self.pc.getType() == "gamg"
-                                         and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind))
+                                         and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind, self.cycles))
             self.general = not self.direct and self.pc.getType() != "gamg"   # the balanced form as written
         self.E = ops.E
         if inner.multigrid(self.pc):
@@ -134,7 +136,7 @@ class CoarseSolve:
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
                   else "")
-        return f"coarse solve: {inner.text(self.pc)}{why}{order}{refine}; options -{self.prefix}*"
+        return f"coarse solve: {inner.text(self.pc, self.cycles)}{why}{order}{refine}; options -{self.prefix}*"
 
     def nnz(self) -> int:
         """Values the solver holds besides the operator."""

@@ -97,11 +97,12 @@ def held(pc) -> int:
     return int(sum(m.getInfo()["nz_used"] for m in mats))
 
 
-def text(pc) -> str:
-    """What the solver ``pc`` does, in a few words."""
+def text(pc, cycles=1) -> str:
+    """What the solver ``pc`` does, in a few words (``cycles``: a multigrid PC's V-cycles an application)."""
     kind = pc.getType()
     if kind in ("gamg", "mg"):
-        return f"one {kind.upper()} V-cycle ({pc.getMGLevels()} levels)"
+        count = {1: "one", 2: "two"}.get(cycles, str(cycles))
+        return f"{count} {kind.upper()} V-cycle{'s' if cycles > 1 else ''} ({pc.getMGLevels()} levels)"
     if kind == "ksp":
         inner = pc.getKSP()
         return (f"{inner.getType().upper()} to rtol {inner.getTolerances()[0]:g} preconditioned by "

@@ -54,7 +54,7 @@ COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG repla
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_REDUNDANT_LU_MAX = 200000            # ... for Morton leaves and near null vectors, which keep the LU longer
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggressive_coarsening": "0",
-                 "mg_levels_ksp_max_it": "3"}            # one V-cycle in the balanced form (coarse_solver)
+                 "mg_levels_ksp_max_it": "3", "pc_mg_multiplicative_cycles": "2"}   # two V-cycles, deflated form
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
@@ -120,8 +120,8 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
-    several ranks (aggregation leaves), and above ``COARSE_DIRECT_MAX[2]`` on one, one distributed GAMG V-cycle
-    (:data:`COARSE_AMG_2D`) replaces it, in the balanced form (:func:`coarse_exact`). Morton leaves (the project's
+    several ranks (aggregation leaves), and above ``COARSE_DIRECT_MAX[2]`` on one, two distributed GAMG V-cycles
+    (:data:`COARSE_AMG_2D`) replace it, in the deflated form (:func:`coarse_exact`). Morton leaves (the project's
     own frames, coordinates attached) keep the LU on several ranks up to :data:`COARSE_REDUNDANT_LU_MAX`: at 1M rows on 2
     ranks (``examples/poisson_multiphase.py -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22
     iterations and 1.43-1.62 against 1.12-1.47 s (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
@@ -145,16 +145,26 @@ def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int 
     return COARSE_REDUNDANT_MAX if kind == "aggregation" and not near else COARSE_REDUNDANT_LU_MAX
 
 
-def coarse_exact(dim: int, solver: str, kind: str = "aggregation") -> bool:
-    """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve in 2-D or on the coarse
+def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None) -> bool:
+    """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve of the 3-D coarse
     operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form takes well (with exact
     leaves it is applied through F = W^T C, which assumes E c1 = W^T x: with a V-cycle V it stays symmetric, and
     positive definite where V converges on its own, eigenvalues of V E in (0, 2), as GAMG's Chebyshev-smoothed
-    cycle does; otherwise CG stops on an indefinite preconditioner, named by its reason; the form that adds back
-    W^T x - E c1 took 49 against 40 iterations on 2 ranks at 1024^2 and lost the true residual): deflated, the same V-cycle costs 1.3-3.4x the CG iterations
-    (a bare 3-D DMDA matrix at 300 763 rows: 133 against 39 with the coarse LU). Morton leaves' 3-D coarse
-    operator keeps its V-cycle in the deflated form (the project's own frames)."""
-    return not (solver == "gamg" and (dim == 2 or kind == "aggregation"))
+    cycle does): deflated, that V-cycle costs 1.3-3.4x the CG iterations (a bare 3-D DMDA matrix at 300 763 rows:
+    133 against 39 with the coarse LU). Morton leaves' 3-D coarse operator keeps its V-cycle in the deflated form
+    (the project's own frames). In 2-D the coarse solve is two V-cycles at threshold 0.02 (:data:`COARSE_AMG_2D`),
+    exact enough for the deflated form, which then takes one coarse solve an application where the balanced form
+    takes two: the DMDA program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup +
+    solve ms (iterations), against one V-cycle in the balanced form: 512^2 460-475 against 488-557 (35 either way),
+    1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691 (40); one V-cycle deflated took 41 and
+    44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
+    16 761 against 18 216 ms, 42 iterations either way. ``cycles``: the 2-D GAMG PC's V-cycles an application (None:
+    :data:`COARSE_AMG_2D`'s); one alone stays in the balanced form."""
+    if solver != "gamg":
+        return True
+    if dim == 3:
+        return kind != "aggregation"
+    return (int(COARSE_AMG_2D["pc_mg_multiplicative_cycles"]) if cycles is None else cycles) >= 2
 
 
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
