@@ -100,3 +100,12 @@ def test_3d_bench_on_two_ranks(tmp_path):
     assert all(r["iterations"] <= 40 and r["relres"] <= 1.01e-8 for r in htp), htp
     report = (out / "report.md").read_text()
     assert "**2 MPI ranks**" in report and "**3-D scenes**" in report and "Peak RSS" in report
+
+
+def test_pattern_splits_its_entries_like_petsc_coo_on_two_ranks():
+    """O's and W's matrix on two ranks is an MPIAIJ on its own diagonal and off-diagonal arrays (a rank with none
+    off its diagonal block included): values, products and frames as PETSc's COO assembly gives them."""
+    out = subprocess.run([MPIEXEC, "-n", "2", sys.executable, str(ROOT / "tests" / "pattern_case.py")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "pattern ok on 2 ranks" in out.stdout

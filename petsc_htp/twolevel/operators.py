@@ -10,6 +10,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import coarsespace
+from ..collective import Collective
 from .csr import compact
 from .inner import scoped
 from .leafsolvers import seqaij
@@ -19,60 +20,65 @@ RAP_MAX_ROWS = 262144   # one rank: rows up to which E = W^T A W takes PETSc's '
 # 1024^2 (the DMDA program) the default PtAP takes 169 against 202 ms and the peak RSS is 727 against 777 MB
 
 
-def coo_aij(comm, rows, cols, shape, local, col_block=1) -> PETSc.Mat:
-    """An AIJ on ``comm`` with the COO pattern (global ``rows``, ``cols``); values come by ``setValuesCOO``."""
-    mat = PETSc.Mat().create(comm=comm)
-    try:
-        mat.setSizes(((local[0], shape[0]), (local[1], shape[1])))
-        mat.setBlockSizes(1, col_block)
-        mat.setType(PETSc.Mat.Type.AIJ)
-        mat.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-    except Exception:
-        mat.destroy()
-        raise
-    return mat
+def _csr(rows, cols, n) -> tuple:
+    """Row pointer of ``n`` rows for entries already in row order, and the column indices, in PETSc's integers."""
+    indptr = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=n))))
+    return indptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)
 
 
 class Pattern:
-    """A matrix of fixed pattern given by COO entries (global ``rows``, ``cols``) whose values come in that order
-    (:meth:`set`). On one rank a SeqAIJ on CSR arrays held here, its values written in place (PETSc's COO maps
-    would hold two more integers per entry: 42 MB of O's and W's at 1M rows), else PETSc's COO assembly."""
+    """A matrix of fixed pattern given by COO entries (global ``rows``, this rank's, and ``cols``) whose values come
+    in that order (:meth:`set`): an AIJ on CSR arrays held here, its values written in place (on several ranks an
+    MPIAIJ on its diagonal and off-diagonal parts); PETSc's COO assembly would hold two more integers per entry
+    (42 MB of O's and W's at 1M rows)."""
 
     def __init__(self, comm, rows, cols, shape, local, col_block=1):
-        self.order = self.values = None
-        if comm.getSize() > 1:
-            self.mat = coo_aij(comm, rows, cols, shape, local, col_block)
-            return
+        coll = Collective(comm)
+        first, col_first = coll.exscan(local[0]), coll.exscan(local[1])
+        rows = rows - first
+        if rows.size and (rows.min() < 0 or rows.max() >= local[0]):
+            raise ValueError("a pattern's rows must be this rank's rows")
         key = rows.astype(np.int64) * shape[1] + cols
+        order = None
         if np.any(key[1:] <= key[:-1]):                     # not yet in CSR order
-            self.order = compact(np.argsort(key, kind="stable"), key.size)
-            rows, cols = rows[self.order], cols[self.order]
-            if np.any(np.diff(key[self.order]) == 0):
+            order = compact(np.argsort(key, kind="stable"), key.size)
+            rows, cols = rows[order], cols[order]
+            if np.any(np.diff(key[order]) == 0):
                 raise ValueError("a pattern's entries must be unique (PETSc's COO assembly would add them)")
-        indptr = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=shape[0]))))
-        self.values = np.zeros(rows.size)
-        self.mat = seqaij(indptr, cols, self.values, shape[0], shape[1])
+        self.size, self.parts = key.size, []
+        if coll.size == 1:
+            self.parts.append((order, np.zeros(key.size)))
+            self.mat = seqaij(*_csr(rows, cols, local[0]), self.parts[0][1], local[0], shape[1])
+        else:
+            inside = (cols >= col_first) & (cols < col_first + local[1])
+            csr = []
+            for part, shift in ((inside, col_first), (~inside, 0)):
+                where = np.flatnonzero(part)
+                self.parts.append((compact(where if order is None else order[where], key.size),
+                                   np.zeros(where.size)))
+                csr.append(_csr(rows[where], cols[where] - shift, local[0]) + (self.parts[-1][1],))
+            self.mat = PETSc.Mat().createAIJWithArrays(((local[0], shape[0]), (local[1], shape[1])), tuple(csr),
+                                                       comm=comm)
         self.mat.setBlockSizes(1, col_block)
 
     def set(self, values):
         """New values, in the order of the entries given."""
-        if self.values is None:
-            self.mat.setValuesCOO(values)
-            return
-        if values.shape != self.values.shape:
-            raise ValueError(f"{values.size} values for a pattern of {self.values.size} entries")
-        if self.order is None:
-            np.copyto(self.values, values)
-        else:
-            np.take(values, self.order, out=self.values)
+        if values.shape != (self.size,):
+            raise ValueError(f"{values.size} values for a pattern of {self.size} entries")
+        for src, held in self.parts:
+            if src is None:
+                np.copyto(held, values)
+            else:
+                np.take(values, src, out=held)
         self.mat.stateIncrease()
 
     def take(self, data, src) -> np.ndarray:
         """New values ``data[src]``, set and returned (on one rank, in CSR order already, the matrix's own array)."""
-        if self.values is not None and self.order is None:
-            np.take(data, src, out=self.values)
+        if self.parts[0][0] is None:
+            held = self.parts[0][1]
+            np.take(data, src, out=held)
             self.mat.stateIncrease()
-            return self.values
+            return held
         values = np.take(data, src)
         self.set(values)
         return values
