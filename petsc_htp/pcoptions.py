@@ -42,8 +42,9 @@ HELP = {
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
     "coarse_solver": "twolevel: auto (LU; in 3-D one GAMG V-cycle once the coarse operator has more than 8192 "
-                     "rows, in 2-D two once it has more than 400000, 16384 on several ranks), lu (redundant on more "
-                     "than one rank) or gamg; -htp_cs_* options configure it",
+                     "rows, in 2-D two once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
+                     "16384 on several ranks), lu (redundant on more than one rank) or gamg; -htp_cs_* options "
+                     "configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M or with one GAMG V-cycle "

@@ -515,8 +515,11 @@ def test_3d_coordinates_with_a_2d_network_is_a_named_error(cube, opts, message):
 
 
 def test_coarse_solver_by_the_problem():
-    top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D: the LU up to 400 000 coarse rows on one rank
-    assert (sizing.coarse_solver(2, top), sizing.coarse_solver(2, top + 1)) == ("lu", "gamg")
+    top = sizing.COARSE_DIRECT_MAX[2]                       # 2-D Morton leaves: the LU up to 400 000 coarse rows
+    assert (sizing.coarse_solver(2, top, 1, "morton"), sizing.coarse_solver(2, top + 1, 1, "morton")) == ("lu", "gamg")
+    scalar = sizing.COARSE_SCALAR_DIRECT_MAX                 # aggregation leaves on one rank: up to 131 072
+    assert (sizing.coarse_solver(2, scalar), sizing.coarse_solver(2, scalar + 1)) == ("lu", "gamg")
+    assert sizing.coarse_solver(2, scalar + 1, 1, near=3) == "lu" and scalar < top
     several = sizing.COARSE_REDUNDANT_LU_MAX                 # a redundant LU for Morton leaves on several ranks
     assert (sizing.coarse_solver(2, several, 2, "morton"), sizing.coarse_solver(2, several + 1, 2, "morton")) == (
         "lu", "gamg")

@@ -16,8 +16,8 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows (aggregation leaves), and on one
-above ``COARSE_DIRECT_MAX[2]``, one distributed GAMG V-cycle replaces the LU, taken by the balanced form
-(:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows
+above :data:`COARSE_SCALAR_DIRECT_MAX` (aggregation leaves) or ``COARSE_DIRECT_MAX[2]``, two distributed GAMG
+V-cycles replace the LU, taken by the deflated form (:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows
 superlinearly (N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
 default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
 (sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
@@ -51,6 +51,7 @@ COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coar
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
 COARSE_METIS_SCALAR_ROWS = 40000            # ... where leaves take one column per piece (metis_ordered)
 COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
+COARSE_SCALAR_DIRECT_MAX = 131072           # ... one rank, 2-D aggregation leaves without near null vectors
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_REDUNDANT_LU_MAX = 200000            # ... for Morton leaves and near null vectors, which keep the LU longer
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggressive_coarsening": "0",
@@ -120,7 +121,8 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
-    several ranks (aggregation leaves), and above ``COARSE_DIRECT_MAX[2]`` on one, two distributed GAMG V-cycles
+    several ranks and :data:`COARSE_SCALAR_DIRECT_MAX` on one (aggregation leaves), else above
+    ``COARSE_DIRECT_MAX[2]`` on one, two distributed GAMG V-cycles
     (:data:`COARSE_AMG_2D`) replace it, in the deflated form (:func:`coarse_exact`). Morton leaves (the project's
     own frames, coordinates attached) keep the LU on several ranks up to :data:`COARSE_REDUNDANT_LU_MAX`: at 1M rows on 2
     ranks (``examples/poisson_multiphase.py -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22
@@ -130,19 +132,28 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     against 4 376 (38), 2048^2 (430 000, the eig space) 23 505 (42) against 27 563 (40); with the paired
     aggregates' scalar coarse operator in METIS's order, 2048^2 (368 000 rows) 22 987 (44) against 20 724 (40),
     peak RSS 2.33 against 2.51 GB (GAMG tuned: 19 062 ms, 1.75 GB; results/scale-20261125g: 20 609 (44) against
-    20 226 (40)), so the LU serves up to 400 000. An operator with ``near`` > 0 near null
+    20 226 (40)), so the LU served up to 400 000. With two V-cycles in the deflated form (one rank, setup + solve,
+    ``-htp_coarse_solver gamg`` against the LU, 2026-11-26): 1024^2 (91 629 coarse rows) 4 014 (37) against 3 915
+    (37), 3 runs each; 1448^2 (about 184 000) 8 758 (38) against 9 817 (38), 2048^2 (368 000) 18 899 (40) against
+    21 704 (40), 2 runs each, peak RSS 2.23 against 2.50 GB at 2048^2 (the LU's METIS order alone takes 2.1 s of its
+    analysis there), so for aggregation leaves without near null vectors the LU serves up to
+    :data:`COARSE_SCALAR_DIRECT_MAX` rows on one rank. An operator with ``near`` > 0 near null
     vectors of its own keeps the LU on several ranks too: GAMG's V-cycle does not know the coarse operator's near
     null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations)."""
     return "lu" if rows <= direct_limit(dim, ranks, kind, near) else "gamg"
 
 
 def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> int:
-    """Coarse rows up to which :func:`coarse_solver` factors the coarse operator: ``COARSE_DIRECT_MAX[dim]`` on one
-    rank or in 3-D; in 2-D on several ranks :data:`COARSE_REDUNDANT_MAX` for aggregation leaves without near null
-    vectors, else :data:`COARSE_REDUNDANT_LU_MAX` (a redundant LU: every rank factors it whole)."""
-    if dim == 3 or ranks == 1:
-        return COARSE_DIRECT_MAX[dim]
-    return COARSE_REDUNDANT_MAX if kind == "aggregation" and not near else COARSE_REDUNDANT_LU_MAX
+    """Coarse rows up to which :func:`coarse_solver` factors the coarse operator: ``COARSE_DIRECT_MAX[3]`` in 3-D; in
+    2-D for aggregation leaves without near null vectors :data:`COARSE_SCALAR_DIRECT_MAX` on one rank and
+    :data:`COARSE_REDUNDANT_MAX` on several, else ``COARSE_DIRECT_MAX[2]`` on one and
+    :data:`COARSE_REDUNDANT_LU_MAX` on several (a redundant LU: every rank factors it whole)."""
+    plain = kind == "aggregation" and not near
+    if dim == 3:
+        return COARSE_DIRECT_MAX[3]
+    if ranks == 1:
+        return COARSE_SCALAR_DIRECT_MAX if plain else COARSE_DIRECT_MAX[2]
+    return COARSE_REDUNDANT_MAX if plain else COARSE_REDUNDANT_LU_MAX
 
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None) -> bool:
