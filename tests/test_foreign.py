@@ -231,17 +231,21 @@ def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
     assert (text.startswith("whole matrix:") and kind in text) if kind else "leaves: aggregation" in text, text
 
 
-def test_new_leaves_when_the_couplings_move_and_not_otherwise():
-    A0, b = CASES["dmda2d"](12000, 0)
+@pytest.mark.parametrize("n", [12000, 250000])
+def test_new_leaves_when_the_couplings_move_and_not_otherwise(n):
+    """A coefficient jump that moved makes new leaves, the same couplings scaled do not; at 250 000 rows the weak
+    couplings are counted on a sample of those inside the leaves (every k-th, Structure.stride)."""
+    A0, b = CASES["dmda2d"](n, 0)
     reason, its, _, ksp, mat = solve(A0, b)
     ctx = ksp.getPC().getPythonContext()
     assert ctx.analysis_count == 1 and reason > 0
+    assert (ctx.analysis.st.stride > 1) == (n > 100000)           # a sample of 131 072 at most
     A0.data *= 2.0                                        # the same shape of the couplings: numeric step only
     mat.setValuesCSR(A0.indptr, A0.indices, A0.data)
     mat.assemble()
     reason, same_its, _, _, _ = solve(A0, b, mat=mat, ksp=ksp)
     assert reason > 0 and ctx.analysis_count == 1 and ctx.numeric_count == 2 and abs(same_its - its) <= 1
-    A1, _ = CASES["dmda2d"](12000, 1)                       # the inclusions moved: new leaves
+    A1, _ = CASES["dmda2d"](n, 1)                           # the inclusions moved: new leaves
     mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
     mat.assemble()
     reason, moved_its, relres, _, _ = solve(A1, b, mat=mat, ksp=ksp)

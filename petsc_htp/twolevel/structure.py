@@ -22,6 +22,8 @@ from .leaflayout import layout
 from .leaves import choose_leaves
 
 WEAK_GROWTH = 2.0       # aggregation leaves are made anew once they hold this many times their weak couplings
+WEAK_SAMPLE = 131072    # couplings inside the leaves counted at most (every k-th of them): at 1M rows the count
+# over all 2.6 million took 0.25 s of the analysis and again of every sequence frame, and its maps 50 MB
 
 
 class Structure:
@@ -65,14 +67,16 @@ class Structure:
             self._weak = None                             # made again by the first moved(): a single solve keeps none
 
     def _weak_maps(self) -> tuple:
-        """Where each off-diagonal entry of D sits in A's values, its D row and column, and the A value of each of
-        D's diagonal entries (by D's rows); made on first use and kept."""
+        """Where every ``stride``-th off-diagonal entry of D (at most :data:`WEAK_SAMPLE`) sits in A's values, and
+        where the diagonal entries of its row and of its column sit; made on first use and kept."""
         if self._weak is None:
             lay = self.lay
             r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
-            off = r != lay.d_indices
-            self._weak = (lay.d_src[off], r[off], lay.d_indices[off].astype(np.int32),
-                          lay.d_src[lay.d_diag[lay.d_leaf_row]])
+            off = np.flatnonzero(r != lay.d_indices)
+            self.stride = max(1, off.size // WEAK_SAMPLE)
+            off = off[::self.stride]
+            diag_src = lay.d_src[lay.d_diag[lay.d_leaf_row]]                 # A's diagonal entry of each D row
+            self._weak = (lay.d_src[off], diag_src[r[off]], diag_src[lay.d_indices[off]])
         return self._weak
 
     def resolved(self, cfg, bare):
@@ -86,11 +90,12 @@ class Structure:
                                    aggregation=second)
 
     def _weak_inside(self, data) -> int:
-        """Weak couplings (:data:`aggregation.THETA`) inside the leaves, for values ``data`` of the analysed pattern."""
-        src, row, col, diag_src = self._weak_maps()
+        """Weak couplings (:data:`aggregation.THETA`) among the sampled ones inside the leaves (:meth:`_weak_maps`),
+        for values ``data`` of the analysed pattern."""
+        src, row_diag, col_diag = self._weak_maps()
         vals = data[src]
-        diag = np.abs(data[diag_src])
-        return int(np.count_nonzero((vals * vals < THETA * THETA * (diag[row] * diag[col])) & (vals != 0)))
+        bound = THETA * THETA * np.abs(data[row_diag] * data[col_diag])
+        return int(np.count_nonzero((vals * vals < bound) & (vals != 0)))
 
     def moved(self, rows) -> bool:
         """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
@@ -99,7 +104,7 @@ class Structure:
         inclusions, which then takes 45 CG iterations against 26). Always False for other leaves."""
         if self.leaves.kind != "aggregation":
             return False
-        return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n
+        return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n / self.stride
 
     def _components(self, mat, rows):
         """Global piece numbering and the connected components of A over all ranks."""
