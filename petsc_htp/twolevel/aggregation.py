@@ -26,6 +26,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .csr import indptr_of
+
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
 PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-D and 3-D Poisson-type graphs
 DECOUPLED_LEAF = 64     # rows per leaf of decoupled rows
@@ -77,8 +79,7 @@ def pairs(M, theta=PAIR_THETA) -> tuple:
     root = np.sqrt(outside)                                          # each root first: no overflow at any scale
     share = M.data / np.maximum(root[rows] * root[M.indices], np.finfo(float).tiny)
     strong = off & (share >= theta)
-    S = sp.csr_matrix((share[strong], M.indices[strong], np.concatenate(([0], np.cumsum(np.bincount(
-        rows[strong], minlength=n))))), shape=M.shape)
+    S = sp.csr_matrix((share[strong], M.indices[strong], indptr_of(rows[strong], n)), shape=M.shape)
     agg, cpts = np.empty(n, dtype=S.indptr.dtype), np.empty(n, dtype=S.indptr.dtype)
     count = amg_core.pairwise_aggregation(n, S.indptr, S.indices, S.data, agg, cpts)
     return int(count), agg.astype(np.int64) - 1                    # the kernel numbers aggregates from 1

@@ -23,7 +23,7 @@ import torch
 from ..checks import probe_reason
 from ..ordering import check_square
 from . import coarsespace, nullspace
-from .csr import row_sums
+from .csr import indptr_of, row_sums
 from .leaflayout import LeafLayout, layout
 from .leaves import Leaves
 
@@ -146,7 +146,7 @@ def analyse(A, leaves: Leaves, device="cpu") -> TwoLevelAnalysis:
     mask[lay.pos] = 1.0
     return TwoLevelAnalysis(
         leaves=leaves, lay=lay, device=device, nnz=A.nnz, pos=as_t(lay.pos), mask=as_t(mask, DTYPE).view(K, L),
-        crow=as_t(np.concatenate(([0], np.cumsum(np.bincount(pr, minlength=K * L))))),
+        crow=as_t(indptr_of(pr, K * L)),
         col=as_t(pc[order]), csr_src=as_t(order),
         in_dst=as_t(pos[d_rows] * L + pos[d_cols] % L), diag_dst=as_t(pos * L + pos % L),
         off_src=as_t(lay.o_src), off_row=as_t(at[lay.o_rows]), off_col=as_t(at[A.indices[lay.o_src]]),

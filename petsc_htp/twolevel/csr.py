@@ -13,6 +13,11 @@ def row_entries(indptr, rows) -> tuple:
     return where, np.repeat(np.arange(rows.size), count)
 
 
+def indptr_of(rows, n) -> np.ndarray:
+    """The row pointer of ``n`` rows for entries whose rows ``rows`` come in row order."""
+    return np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=n))))
+
+
 def row_sums(indptr, data) -> np.ndarray:
     """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row): one reduction
     per row, with no per-entry array."""

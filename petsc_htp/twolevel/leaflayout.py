@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .csr import compact
+from .csr import compact, indptr_of
 from .leaves import Leaves
 from .nullspace import Pieces, find_pieces
 
@@ -147,7 +147,7 @@ def layout(rows: sp.csr_matrix, start: int, leaves: Leaves) -> LeafLayout:
         ids.sort_indices()
         d_src = ids.data.astype(np.int64) - 1
         d_rows, d_cols = np.repeat(np.arange(n), np.diff(ids.indptr)), ids.indices.astype(np.int64)
-    d_indptr = np.concatenate(([0], np.cumsum(np.bincount(d_rows, minlength=n))))
+    d_indptr = indptr_of(d_rows, n)
     d_diag = np.flatnonzero(d_rows == d_cols)
     if d_diag.size != n:
         missing = np.setdiff1d(np.arange(n), d_rows[d_rows == d_cols])

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from .csr import row_entries
+from .csr import indptr_of, row_entries
 
 EXACT = ("cholesky", "lu")        # leaf PC types that solve D exactly
 
@@ -156,7 +156,7 @@ class OverlappingLeaves:
         r, c, src = owner[hit], sorter[at[hit]], first[hit]
         order = np.lexsort((c, r))
         self.src = src[order]
-        indptr = np.concatenate(([0], np.cumsum(np.bincount(r, minlength=member.size))))
+        indptr = indptr_of(r, member.size)
         self.member, self.n = member, n
         self.f = _Factored(indptr, c[order], np.zeros(self.src.size), member, make_pc)
 

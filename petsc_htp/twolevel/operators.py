@@ -11,7 +11,7 @@ from petsc4py import PETSc
 
 from . import coarsespace
 from ..collective import Collective
-from .csr import compact
+from .csr import compact, indptr_of
 from .inner import scoped
 from .leafsolvers import seqaij
 
@@ -22,8 +22,7 @@ RAP_MAX_ROWS = 262144   # one rank: rows up to which E = W^T A W takes PETSc's '
 
 def _csr(rows, cols, n) -> tuple:
     """Row pointer of ``n`` rows for entries already in row order, and the column indices, in PETSc's integers."""
-    indptr = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=n))))
-    return indptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)
+    return indptr_of(rows, n).astype(PETSc.IntType), cols.astype(PETSc.IntType)
 
 
 class Pattern:

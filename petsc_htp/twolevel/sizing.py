@@ -17,10 +17,11 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows (aggregation leaves), and on one
 above :data:`COARSE_SCALAR_DIRECT_MAX` (aggregation leaves) or ``COARSE_DIRECT_MAX[2]``, two distributed GAMG
-V-cycles replace the LU, taken by the deflated form (:func:`coarse_solver`). A 3-D coarse operator with more than ``COARSE_DIRECT_MAX[3]`` rows, whose LU grows
-superlinearly (N/64 rows at N in the millions), gets one GAMG V-cycle instead; it makes a larger coarse space cheap, so the
-default leaves then shrink to :data:`LEAF_AMG` rows, which keeps every frame within 40 iterations at 128^3
-(sweeps over leaf size and coarse solver at 32^3 to 128^3: LU wins at 4096 coarse rows, GAMG at 13824).
+V-cycles replace the LU, taken by the deflated form (:func:`coarse_solver`). A 3-D coarse operator with more than
+``COARSE_DIRECT_MAX[3]`` rows, whose LU grows superlinearly (N/64 rows at N in the millions), gets one GAMG
+V-cycle instead; it makes a larger coarse space cheap, so the default leaves then shrink to :data:`LEAF_AMG` rows,
+which keeps every frame within 40 iterations at 128^3 (sweeps over leaf size and coarse solver at 32^3 to 128^3:
+LU wins at 4096 coarse rows, GAMG at 13824).
 
 Below :data:`DIRECT_MAX` rows one sparse Cholesky factor of the whole matrix (nested dissection) costs less
 than the two-level setup: the foreign study's small-matrix sweep (``petsc-htp bench --studies foreign --methods

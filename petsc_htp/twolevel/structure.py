@@ -63,8 +63,7 @@ class Structure:
         self._columns(net_rank, rows)
         self._weak = None
         if self.leaves.kind == "aggregation":
-            self.weak_made = self._weak_inside(rows.data)
-            self._weak = None                             # made again by the first moved(): a single solve keeps none
+            self.weak_made = self._weak_inside(rows.data)     # its sampled maps are kept for moved()
 
     def _weak_maps(self) -> tuple:
         """Where every ``stride``-th off-diagonal entry of D (at most :data:`WEAK_SAMPLE`) sits in A's values, and
