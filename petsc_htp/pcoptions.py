@@ -28,8 +28,8 @@ HELP = {
                 "rcm, natural, graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's "
                 "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
     "aggregation": "twolevel aggregation leaves only: the passes after the first, auto (pairs, with the const "
-                   "space, in 2-D where rows hold at most 5.5 entries on average, the Mat has no block size or near "
-                   "null space and -htp_coarse is auto or const; else standard), standard (aggregates of "
+                   "space, in 3-D and in 2-D where rows hold at most 5.5 entries on average, the Mat has no block "
+                   "size or near null space and -htp_coarse is auto or const; else standard), standard (aggregates of "
                    "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
@@ -41,14 +41,14 @@ HELP = {
                    "the network's r)",
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
-    "coarse_solver": "twolevel: auto (LU; in 3-D one GAMG V-cycle once the coarse operator has more than 8192 "
-                     "rows, in 2-D two once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
+    "coarse_solver": "twolevel: auto (LU; in 3-D two GAMG V-cycles once the coarse operator of paired "
+                     "aggregation leaves has more than 1536 rows, one once another has more than 8192, in 2-D two once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
                      "16384 on several ranks), lu (redundant on more than one rank) or gamg; -htp_cs_* options "
                      "configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
     "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M or with one GAMG V-cycle "
-            "in 2-D or on 3-D aggregation leaves), deflated (one coarse solve "
+            "on aggregation leaves), deflated (one coarse solve "
             "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
     "overlap": "twolevel: 0 for exact leaf solves, k > 0 for additive Schwarz on leaves grown by k layers of "
                "neighbours within each rank (the forms then go through A W)",

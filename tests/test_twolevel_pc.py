@@ -525,8 +525,15 @@ def test_coarse_solver_by_the_problem():
         "lu", "gamg")
     assert sizing.direct_limit(2, 2) == sizing.COARSE_REDUNDANT_MAX < several < top
     assert sizing.coarse_options(2, False, "gamg")["pc_gamg_aggressive_coarsening"] == "0"
-    limit = sizing.COARSE_DIRECT_MAX[3]
-    assert (sizing.coarse_solver(3, limit), sizing.coarse_solver(3, limit + 1)) == ("lu", "gamg")
+    limit = sizing.COARSE_DIRECT_MAX[3]                      # 3-D Morton leaves and near null vectors: 8192
+    assert (sizing.coarse_solver(3, limit, 1, "morton"), sizing.coarse_solver(3, limit + 1, 1, "morton")) == ("lu", "gamg")
+    assert sizing.coarse_solver(3, limit, 1, near=6) == "lu"
+    paired = sizing.COARSE_PAIRED_DIRECT_MAX_3D              # 3-D paired aggregation leaves: two V-cycles above 1536
+    assert (sizing.coarse_solver(3, paired), sizing.coarse_solver(3, paired + 1)) == ("lu", "gamg") and paired < limit
+    assert sizing.coarse_options(3, False, "gamg", "aggregation")["pc_mg_multiplicative_cycles"] == "2"
+    assert "pc_mg_multiplicative_cycles" not in sizing.coarse_options(3, False, "gamg", "aggregation", near=6)
+    assert sizing.aggregation(3, 0, 15.0) == "pairs" and sizing.aggregation(3, 6, 7.0) == "standard"
+    assert sizing.aggregation(2, 0, 9.0) == "standard" and sizing.aggregation(3, 0, 7.0, "eig") == "standard"
     assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"
     assert sizing.coarse_options(3, True, "gamg")["pc_type"] == "gamg"
     order = "pc_factor_mat_ordering_type"

@@ -38,7 +38,7 @@ class CoarseSolve:
         self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size,
                                                                            st.leaves.kind, st.fixed)
         self.chosen = solver == "auto"
-        self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind)   # else the balanced form (Forms)
+        self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind, near=st.fixed)   # else balanced (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
         self.refine, self.error, self.direct, self.general, self.cycles = 0, 0.0, False, False, 1
 
@@ -47,7 +47,8 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
-            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m, st.ordered)
+            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m, st.ordered,
+                                             st.fixed)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)
@@ -58,7 +59,7 @@ class CoarseSolve:
             self.g, self.c, self.c2, self._res, self._dc = (E.createVecLeft() for _ in range(5))
             self.direct = self._direct()                       # the PC the options made, not the solver's name
             self.exact = self.direct or (self.pc.getType() == "gamg"
-                                         and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind, self.cycles))
+                                         and sizing.coarse_exact(st.dim, "gamg", st.leaves.kind, self.cycles, st.fixed))
             self.general = not self.direct and self.pc.getType() != "gamg"   # the balanced form as written
         self.E = ops.E
         if inner.multigrid(self.pc):

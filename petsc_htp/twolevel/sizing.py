@@ -60,6 +60,8 @@ COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggres
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
+COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
+COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows above which GAMG replaces the LU
 
 
 def coarse_space(dim, near, paired=False) -> str:
@@ -80,7 +82,7 @@ def aggregation(dim, near, per_row, coarse="auto") -> str:
     rows are richer (9-point stencils, P1 triangles) the const space on them takes far more iterations (rotated
     anisotropy: 110-207 against 40-61) and the eig space on them a coarse LU of 1.5 times the rows at twice the
     cost of the standard leaves' (the same study)."""
-    paired = dim == 2 and not near and per_row <= RICH_ROW and coarse in ("auto", "const")
+    paired = not near and coarse in ("auto", "const") and (dim == 3 or per_row <= RICH_ROW)
     return "pairs" if paired else "standard"
 
 
@@ -109,7 +111,7 @@ def whole_factor(dim: int, n: int, per_row: float, bare: bool):
 def leaf_size(dim: int, n: int) -> int:
     """Default rows per leaf of an ``n``-row matrix in ``dim`` dimensions."""
     leaf = LEAF[dim]
-    return LEAF_AMG[dim] if coarse_solver(dim, n // leaf) == "gamg" else leaf
+    return LEAF_AMG[dim] if coarse_solver(dim, n // leaf, kind="morton") == "gamg" else leaf
 
 
 def leaf_factor(dim: int, kind: str) -> dict:
@@ -151,13 +153,13 @@ def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int 
     :data:`COARSE_REDUNDANT_LU_MAX` on several (a redundant LU: every rank factors it whole)."""
     plain = kind == "aggregation" and not near
     if dim == 3:
-        return COARSE_DIRECT_MAX[3]
+        return COARSE_PAIRED_DIRECT_MAX_3D if plain else COARSE_DIRECT_MAX[3]
     if ranks == 1:
         return COARSE_SCALAR_DIRECT_MAX if plain else COARSE_DIRECT_MAX[2]
     return COARSE_REDUNDANT_MAX if plain else COARSE_REDUNDANT_LU_MAX
 
 
-def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None) -> bool:
+def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, near: int = 0) -> bool:
     """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve of the 3-D coarse
     operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form takes well (with exact
     leaves it is applied through F = W^T C, which assumes E c1 = W^T x: with a V-cycle V it stays symmetric, and
@@ -174,9 +176,11 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None) 
     :data:`COARSE_AMG_2D`'s); one alone stays in the balanced form."""
     if solver != "gamg":
         return True
-    if dim == 3:
-        return kind != "aggregation"
-    return (int(COARSE_AMG_2D["pc_mg_multiplicative_cycles"]) if cycles is None else cycles) >= 2
+    if dim == 3 and kind != "aggregation":
+        return True
+    if cycles is None:
+        cycles = int(coarse_options(dim, False, "gamg", kind, near=near).get("pc_mg_multiplicative_cycles", 1))
+    return cycles >= 2
 
 
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
@@ -192,7 +196,8 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
     return lu and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
 
 
-def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False) -> dict:
+def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False,
+                   near: int = 0) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
     'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
     saves) in ``dim`` dimensions. In 2-D (:data:`COARSE_AMG_2D`) and on the coarse operator of aggregation leaves
@@ -210,7 +215,9 @@ def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: 
     if solver == "gamg":
         if dim == 2:
             return dict(COARSE_AMG_2D)
-        return dict(COARSE_AMG_3D if kind == "aggregation" else COARSE_AMG)
+        if kind != "aggregation":
+            return dict(COARSE_AMG)
+        return dict(COARSE_AMG_3D if near else COARSE_AMG_3D_PAIRED)
     ordering = "natural" if ordered else "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
     opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": ordering}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts
