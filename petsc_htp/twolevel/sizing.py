@@ -10,7 +10,10 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 - 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
-  coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A 2-D coarse
+  coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A bare 3-D matrix's
+  aggregation leaves are paired as well (:func:`aggregation`); their coarse operator, of N/10 rows, fills fast
+  under an LU (2 289 rows of a 64 000-row DMDA matrix: 510 000 factor entries, 46 ms) and takes two GAMG
+  V-cycles in the deflated form above :data:`COARSE_PAIRED_DIRECT_MAX_3D` rows (:func:`coarse_exact`). A 2-D coarse
   operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`);
   from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
 
@@ -81,7 +84,10 @@ def aggregation(dim, near, per_row, coarse="auto") -> str:
     scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README). Where
     rows are richer (9-point stencils, P1 triangles) the const space on them takes far more iterations (rotated
     anisotropy: 110-207 against 40-61) and the eig space on them a coarse LU of 1.5 times the rows at twice the
-    cost of the standard leaves' (the same study)."""
+    cost of the standard leaves' (the same study). In 3-D any bare matrix's aggregates are paired, rich rows too:
+    with two coarse V-cycles (:func:`coarse_exact`) the foreign study's DMDA case took 25-29 against 33-41 CG
+    iterations from 32^3 to 128^3 and 0.88-1.05 times the time (10.5 against 11.9 s at 128^3), and the P1 tets at
+    64 000 rows 40 against 47 iterations and 461 against 468-500 ms (results/foreign-20261126c and -d, README)."""
     paired = not near and coarse in ("auto", "const") and (dim == 3 or per_row <= RICH_ROW)
     return "pairs" if paired else "standard"
 
@@ -172,8 +178,11 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
     solve ms (iterations), against one V-cycle in the balanced form: 512^2 460-475 against 488-557 (35 either way),
     1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691 (40); one V-cycle deflated took 41 and
     44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
-    16 761 against 18 216 ms, 42 iterations either way. ``cycles``: the 2-D GAMG PC's V-cycles an application (None:
-    :data:`COARSE_AMG_2D`'s); one alone stays in the balanced form."""
+    16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves
+    (``near`` = 0) takes two V-cycles in the deflated form too (:data:`COARSE_AMG_3D_PAIRED`): as many CG iterations
+    as under its LU (25 at 32^3 and 64 000 rows), and at 128^3 27 in 9.3 s against one V-cycle's balanced form,
+    27 in 12.4 s (``-htp_aggregation pairs``, one run each). ``cycles``: the GAMG PC's V-cycles an application
+    (None: the defaults' for ``dim``, ``kind`` and ``near``); one alone stays in the balanced form."""
     if solver != "gamg":
         return True
     if dim == 3 and kind != "aggregation":
