@@ -222,7 +222,9 @@ class HTPPC:
             self._guess = self.variant.presolve(self.setup, ksp, b, x, stale)
 
     def postSolve(self, pc, ksp, b, x):
-        """After each KSPSolve: give the KSP back its initial-guess flag."""
+        """After each KSPSolve: tell the variant its iterations; give the KSP back its initial-guess flag."""
+        if self.setup is not None and not self.fallback_active:
+            self.variant.solved(self.setup, ksp.getIterationNumber())
         if self._guess is not None:
             ksp.setInitialGuessNonzero(self._guess)
             self._guess = None

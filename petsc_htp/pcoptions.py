@@ -46,7 +46,9 @@ HELP = {
                      "16384 on several ranks), lu (redundant on more than one rank) or gamg; -htp_cs_* options "
                      "configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
-                          "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation)",
+                          "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation); 0: "
+                          "keep it while it serves, at most 4 setups and while the last solve took at most 1.25 x "
+                          "+ 2 the iterations of the first with it",
     "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M or with one GAMG V-cycle "
             "on aggregation leaves), deflated (one coarse solve "
             "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
@@ -81,7 +83,7 @@ class HTPOptions:
     coarse_checkpoint: str = ""
     coarse_tol: float = 0.0
     coarse_solver: str = "auto"
-    coarse_space_every: int = 1
+    coarse_space_every: int = 0
     form: str = "auto"
     overlap: int = 0
     direct_max: int = -1
@@ -116,7 +118,7 @@ class HTPOptions:
                 raise ValueError(f"{opt}{name} must be a finite non-negative number, got {getattr(self, name)}")
         if self.leaf == 1 or self.leaf < 0:
             raise ValueError(f"{opt}leaf must be 0 (by the problem) or >= 2, got {self.leaf}")
-        for name, low in (("threads", 1), ("coarse_rank", 1), ("coarse_space_every", 1), ("probe", -1),
+        for name, low in (("threads", 1), ("coarse_rank", 1), ("coarse_space_every", 0), ("probe", -1),
                           ("overlap", 0), ("direct_max", -1)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")

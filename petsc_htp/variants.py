@@ -12,6 +12,7 @@ options prefix, with
 - ``presolve(setup, ksp, b, x, stale)``: called before each KSPSolve (``stale``: the setup is reused on
   an operator whose values changed since); returns the KSP's initial-guess flag when it changed it
   (restored after the solve), else None;
+- ``solved(setup, its)``: called after each KSPSolve with its iterations;
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
   the couplings, once the couplings moved);
 - ``destroy(analysis)``: free what the analysis and its setups hold;
@@ -100,7 +101,7 @@ class TwoLevel:
 
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
-                 o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 1)
+                 o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
         n = mat.getSize()[0]
         if mat.getComm().getSize() > 1 or not plain:
             return None
@@ -119,11 +120,20 @@ class TwoLevel:
         return sizing.whole_factor(dim, n, per_row, coords is None)
 
     def numeric(self, analysis, mat, A, density, previous):
-        """New values; the coarse space is kept between refreshes (``-htp_coarse_space_every``)."""
-        every = self.opts.coarse_space_every          # > 1 only on a TwoLevelPC (a pattern option: a DirectPC has 1)
-        keep = previous is not None and every > 1 and previous.space.age + 1 < every
+        """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,
+        :mod:`.twolevel.spacereuse`; a DirectPC has none)."""
+        from .twolevel.spacereuse import keeps
+
+        space = getattr(previous, "space", None)
+        keep = space is not None and keeps(self.opts.coarse_space_every, space.age, previous.its)
         analysis.numeric(A, density, keep_space=keep)
         return analysis
+
+    @staticmethod
+    def solved(setup, its):
+        """A KSPSolve with ``setup`` took ``its`` iterations (for :func:`.twolevel.spacereuse.keeps`)."""
+        if hasattr(setup, "its"):
+            setup.its.append(its)
 
     @staticmethod
     def moved(analysis, A) -> bool:

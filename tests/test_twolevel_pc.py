@@ -261,6 +261,41 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     assert ctx.setup.space.age == 1 and "space kept from 1 numeric setup ago" in "\n".join(ctx.setup.describe())
 
 
+def test_the_coarse_space_is_kept_while_it_serves():
+    """-htp_coarse_space_every 0, the default: W is kept from one numeric setup to the next while the last solve took
+    at most 1.25 x + 2 the iterations of the first with it, for at most spacereuse.AUTO_AGE setups; a solve that
+    took more (here to rtol 1e-8 after the first with the new W to 1e-4) makes the next setup compute a new W."""
+    from petsc_htp.sim.flow import Flow
+    from petsc_htp.twolevel.spacereuse import AUTO_AGE, keeps
+
+    assert keeps(3, 1, []) and not keeps(3, 2, [20]) and not keeps(1, 0, [20])
+    assert keeps(0, 0, [20]) and keeps(0, 2, [20, 27]) and not keeps(0, 0, [20, 28]) and not keeps(0, 0, [])
+    assert not keeps(0, AUTO_AGE - 1, [20, 20])
+    sim = Flow(32, 32)
+    sim.advance()
+    A, b, _, _ = sim.system()
+    mat = petsc_mat(A)
+    _, _, _, ksp = solve(mat, b, htp_aggregation="standard")                       # the eig space
+    ctx, ages, its = ksp.getPC().getPythonContext(), [], []
+    for frame in range(7):
+        sim.project(ksp.getSolution().getArray())
+        sim.advance()
+        A, b, _, _ = sim.system()
+        mat.setValuesCSR(A.indptr, A.indices, A.data)
+        mat.assemble()
+        rhs, x = mat.createVecs()
+        rhs.setArray(b)
+        x.set(0)
+        ksp.setTolerances(rtol=1e-4 if frame == 3 else 1e-8)
+        ksp.solve(rhs, x)
+        assert ksp.getConvergedReason() > 0
+        ages.append(ctx.setup.space.age)
+        its.append(ksp.getIterationNumber())
+    assert ages[:5] == [1, 2, 3, 0, 1] and its[4] > 1.25 * its[3] + 2 and ages[5:] == [0, 1], (ages, its)
+    assert (ctx.analysis_count, ctx.numeric_count) == (1, 8) and "space kept from 1 numeric setup ago" in "\n".join(
+        ctx.setup.describe())
+
+
 def test_overlapping_leaves_grow_by_layers_and_converge(frames):
     """-htp_overlap k grows every leaf by k layers of its neighbours (restricted additive Schwarz leaves): each
     layer adds rows, and CG still reaches its rtol in the true residual."""

@@ -48,6 +48,10 @@ class Paper:
         return None
 
     @staticmethod
+    def solved(setup, its):
+        """Nothing to record after a solve."""
+
+    @staticmethod
     def moved(analysis, A) -> bool:
         """The analysis depends on the pattern only."""
         return False

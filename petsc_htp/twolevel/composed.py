@@ -53,7 +53,7 @@ class TwoLevelPC:
 
     def __init__(self, mat, rows, coords, cfg, prefix="htp_", net=None):
         self.leafsolver = self.space = self.ops = self.coarse = self.forms = None
-        self.times, self.numeric_count, self.quotients = {}, 0, None
+        self.times, self.numeric_count, self.quotients, self.its = {}, 0, None, []   # its: solves with this W
         try:
             self._analyse(mat, rows, coords, cfg, prefix, net)
         except Exception:
@@ -104,7 +104,7 @@ class TwoLevelPC:
         with phase("HTPCoarseSpace", T, "coarse_space"):
             try:
                 if new_space:
-                    weights = None
+                    self.its, weights = [], None
                     if self.space.flat and not self.space.null_components:    # a null constant stays
                         weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,

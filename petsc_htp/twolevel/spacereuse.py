@@ -1,0 +1,23 @@
+"""Whether a numeric step keeps the coarse space W of an earlier one (``-htp_coarse_space_every k``), as GAMG's
+``-pc_gamg_reuse_interpolation`` keeps its interpolation: the leaf factor, A W, W^T A W and the coarse solve are
+refreshed, so M stays exact for the new values with a W made for older ones.
+
+k >= 1 computes W at every k-th numeric setup. k = 0, the default, keeps W while it serves: for at most
+:data:`AUTO_AGE` numeric setups, and only while the last solve took at most :data:`AUTO_GROWTH` times (plus
+:data:`AUTO_SLACK`) the iterations of the first solve with it, so values that moved away from W cost one frame's
+extra iterations before a new W. On the project's own frames in sequence mode W made one to three frames earlier
+served as well as a fresh one (``petsc-htp bench --studies sequence``, README).
+"""
+from __future__ import annotations
+
+AUTO_AGE = 4            # auto: a coarse space serves at most this many numeric setups
+AUTO_GROWTH = 1.25      # ... while the last solve took at most this times the iterations of the first with it
+AUTO_SLACK = 2          # ... plus this many
+
+
+def keeps(every: int, age: int, its: list) -> bool:
+    """Whether the next numeric setup keeps a coarse space made ``age`` numeric setups ago under
+    ``-htp_coarse_space_every every``, after solves that took ``its`` iterations since it was made."""
+    if every > 0:
+        return age + 1 < every
+    return bool(its) and age + 1 < AUTO_AGE and its[-1] <= AUTO_GROWTH * its[0] + AUTO_SLACK
