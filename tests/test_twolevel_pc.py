@@ -233,6 +233,22 @@ def test_coarse_tol_adds_vectors_only_where_a_leaf_has_more_low_modes(frames):
     assert counts["rough", 0.01].max() <= 8
 
 
+def _next_flow_frame(sim, ksp, mat, rtol=1e-8):
+    """Advance the flow ``sim`` by a frame (from ``ksp``'s last solution), set its values in ``mat`` and solve to
+    ``rtol`` on ``ksp``, which must converge."""
+    sim.project(ksp.getSolution().getArray())
+    sim.advance()
+    A, b, _, _ = sim.system()
+    mat.setValuesCSR(A.indptr, A.indices, A.data)
+    mat.assemble()
+    rhs, x = mat.createVecs()
+    rhs.setArray(b)
+    x.set(0)
+    ksp.setTolerances(rtol=rtol)
+    ksp.solve(rhs, x)
+    assert ksp.getConvergedReason() > 0
+
+
 def test_coarse_space_every_keeps_the_space_between_refreshes():
     from petsc_htp.sim.flow import Flow
 
@@ -245,16 +261,7 @@ def test_coarse_space_every_keeps_the_space_between_refreshes():
     for _ in range(4):
         ages.append(ctx.setup.space.age)
         spaces.append(ctx.setup.space.values.copy())
-        sim.project(ksp.getSolution().getArray())
-        sim.advance()
-        A, b, _, _ = sim.system()
-        mat.setValuesCSR(A.indptr, A.indices, A.data)
-        mat.assemble()
-        rhs, x = mat.createVecs()
-        rhs.setArray(b)
-        x.set(0)
-        ksp.solve(rhs, x)
-        assert ksp.getConvergedReason() > 0
+        _next_flow_frame(sim, ksp, mat)
     assert ages == [0, 1, 2, 0] and (ctx.analysis_count, ctx.numeric_count) == (1, 5)
     assert np.array_equal(spaces[1], spaces[0]) and np.array_equal(spaces[2], spaces[0])
     assert not np.array_equal(spaces[3], spaces[0])
@@ -278,17 +285,7 @@ def test_the_coarse_space_is_kept_while_it_serves():
     _, _, _, ksp = solve(mat, b, htp_aggregation="standard")                       # the eig space
     ctx, ages, its = ksp.getPC().getPythonContext(), [], []
     for frame in range(7):
-        sim.project(ksp.getSolution().getArray())
-        sim.advance()
-        A, b, _, _ = sim.system()
-        mat.setValuesCSR(A.indptr, A.indices, A.data)
-        mat.assemble()
-        rhs, x = mat.createVecs()
-        rhs.setArray(b)
-        x.set(0)
-        ksp.setTolerances(rtol=1e-4 if frame == 3 else 1e-8)
-        ksp.solve(rhs, x)
-        assert ksp.getConvergedReason() > 0
+        _next_flow_frame(sim, ksp, mat, 1e-4 if frame == 3 else 1e-8)
         ages.append(ctx.setup.space.age)
         its.append(ksp.getIterationNumber())
     assert ages[:5] == [1, 2, 3, 0, 1] and its[4] > 1.25 * its[3] + 2 and ages[5:] == [0, 1], (ages, its)
