@@ -102,6 +102,17 @@ def test_3d_bench_on_two_ranks(tmp_path):
     assert "**2 MPI ranks**" in report and "**3-D scenes**" in report and "Peak RSS" in report
 
 
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_components_across_ranks_are_the_whole_matrix_components(ranks):
+    """The two-level analysis on several ranks finds each rank's own components, then joins them by the couplings
+    between ranks alone (no rank gathers the graph): the partition is scipy's on the whole matrix, with chains across
+    a rank boundary and a coupling between the first and the last rank (tests/components_case.py)."""
+    out = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(ROOT / "tests" / "components_case.py")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert f"components ok on {ranks} ranks" in out.stdout
+
+
 def test_pattern_splits_its_entries_like_petsc_coo_on_two_ranks():
     """O's and W's matrix on two ranks is an MPIAIJ on its own diagonal and off-diagonal arrays (a rank with none
     off its diagonal block included): values, products and frames as PETSc's COO assembly gives them."""

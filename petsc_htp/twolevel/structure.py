@@ -106,7 +106,9 @@ class Structure:
         return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n / self.stride
 
     def _components(self, mat, rows):
-        """Global piece numbering and the connected components of A over all ranks."""
+        """Global piece numbering and the connected components of A over all ranks: on several, each rank's own
+        components first (its couplings between its leaves), then the graph of those components joined by the
+        couplings between ranks, which alone travel."""
         lay, coll = self.lay, self.coll
         pc = lay.pieces
         self.piece_offset = coll.exscan(pc.n_pieces)
@@ -123,13 +125,19 @@ class Structure:
         o_rows, o_cols = lay.o_rows, rows.indices[lay.o_src].astype(np.int64)
         start, n = lay.start, lay.n
         local = (o_cols >= start) & (o_cols < start + n)
-        other = np.zeros(o_cols.size, dtype=np.int64)
-        other[local] = row_piece[o_cols[local] - start]
-        other[~local] = ghost_values(mat, row_piece, o_cols[~local]).astype(np.int64)    # collective: every rank
-        key = np.unique(row_piece[o_rows] * self.n_pieces + other)
-        edges = np.stack([key // self.n_pieces, key % self.n_pieces], 1)
-        self.n_comp, self.comp_of_piece = nullspace.components(self.n_pieces, coll.gather_rows(edges))
-        self.comp_of_row = self.comp_of_piece[row_piece]              # of A's local rows
+        my_piece = pc.label[lay.iperm]                                # this rank's piece of each local row
+        inside = np.stack([my_piece[o_rows[local]], my_piece[o_cols[local] - start]], 1)
+        n_loc, loc = nullspace.components(pc.n_pieces, inside)        # the rank's own components: no messages
+        offset = coll.exscan(n_loc)
+        n_all = coll.sum(n_loc)
+        row_comp = loc[my_piece] + np.int64(offset)
+        far = ~local
+        other = ghost_values(mat, row_comp, o_cols[far]).astype(np.int64)      # collective: every rank
+        key = np.unique(row_comp[o_rows[far]] * n_all + other)       # couplings between ranks' components
+        edges = np.stack([key // n_all, key % n_all], 1)
+        self.n_comp, comp = nullspace.components(n_all, coll.gather_rows(edges))
+        self.comp_of_row = comp[row_comp]                             # of A's local rows
+        self.comp_of_piece = coll.gather_rows((comp[loc + offset])[:, None]).ravel()   # every piece, rank by rank
         self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
 
     def _columns(self, net_rank, rows):
