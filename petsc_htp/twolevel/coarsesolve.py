@@ -2,7 +2,8 @@
 
 By default (:func:`.sizing.coarse_solver`, :func:`.sizing.coarse_options`) a sparse LU (PCREDUNDANT on more than
 one rank), or above :data:`.sizing.COARSE_DIRECT_MAX` rows (in 2-D on several ranks above
-:data:`.sizing.COARSE_REDUNDANT_MAX`, aggregation leaves) one GAMG V-cycle (two in 2-D), in the balanced form where
+:data:`.sizing.COARSE_REDUNDANT_MAX`, in 3-D above :data:`.sizing.COARSE_PAIRED_DIRECT_MAX_3D` for paired aggregation
+leaves) one GAMG V-cycle (two in 2-D and on 3-D paired leaves), in the balanced form where
 it is not exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose near null space is W^T 1 (the constant's
 coarse coefficients; with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's
 dmda3d case at 64^3).
