@@ -42,7 +42,8 @@ HELP = {
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
     "coarse_solver": "twolevel: auto (LU; in 3-D two GAMG V-cycles once the coarse operator of paired "
-                     "aggregation leaves has more than 1536 rows, one once another has more than 8192, in 2-D two once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
+                     "aggregation leaves has more than 1536 rows, one once another has more than 8192, in 2-D two "
+                     "once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
                      "16384 on several ranks), lu (redundant on more than one rank) or gamg; -htp_cs_* options "
                      "configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "

@@ -131,9 +131,10 @@ class TwoLevel:
 
     @staticmethod
     def solved(setup, its):
-        """A KSPSolve with ``setup`` took ``its`` iterations (for :func:`.twolevel.spacereuse.keeps`)."""
+        """A KSPSolve with ``setup`` took ``its`` iterations: kept as the first and the last since its coarse space
+        was made (:func:`.twolevel.spacereuse.keeps`); a DirectPC keeps none."""
         if hasattr(setup, "its"):
-            setup.its.append(its)
+            setup.its = setup.its[:1] + [its]
 
     @staticmethod
     def moved(analysis, A) -> bool:

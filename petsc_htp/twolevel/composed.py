@@ -53,7 +53,7 @@ class TwoLevelPC:
 
     def __init__(self, mat, rows, coords, cfg, prefix="htp_", net=None):
         self.leafsolver = self.space = self.ops = self.coarse = self.forms = None
-        self.times, self.numeric_count, self.quotients, self.its = {}, 0, None, []   # its: solves with this W
+        self.times, self.numeric_count, self.quotients, self.its = {}, 0, None, []   # its: first, last solve with this W
         try:
             self._analyse(mat, rows, coords, cfg, prefix, net)
         except Exception:

@@ -64,7 +64,7 @@ LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
-COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows above which GAMG replaces the LU
+COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows from which GAMG serves
 
 
 def coarse_space(dim, near, paired=False) -> str:

@@ -17,7 +17,8 @@ AUTO_SLACK = 2          # ... plus this many
 
 def keeps(every: int, age: int, its: list) -> bool:
     """Whether the next numeric setup keeps a coarse space made ``age`` numeric setups ago under
-    ``-htp_coarse_space_every every``, after solves that took ``its`` iterations since it was made."""
+    ``-htp_coarse_space_every every``, after solves since it was made that took ``its`` iterations (the first and the
+    last)."""
     if every > 0:
         return age + 1 < every
     return bool(its) and age + 1 < AUTO_AGE and its[-1] <= AUTO_GROWTH * its[0] + AUTO_SLACK
