@@ -115,7 +115,7 @@ class TwoLevel:
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
             return "icc"                                                  # the same in any dimension
-        shape = graph_shape(A, weak=False, samples=8) if coords is None else None
+        shape = graph_shape(A, want_weak=False, samples=8) if coords is None else None
         dim = sizing.dimension(None if coords is None else coords.shape[1], shape)
         return sizing.whole_factor(dim, n, per_row, coords is None)
 

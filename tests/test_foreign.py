@@ -14,7 +14,7 @@ from petsc_htp.bench.studies.foreign import bare_frame
 from petsc_htp.petscmat import frame_mat, frame_vec
 from petsc_htp.scenes import foreign, meshes
 from petsc_htp.twolevel import sizing
-from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, aggregates, decoupled_rows
+from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, THETA, aggregates, decoupled_rows, sampled_shares, threshold
 from petsc_htp.twolevel.graphshape import graph_shape
 from petsc_htp.twolevel.leaves import choose_leaves
 
@@ -138,6 +138,28 @@ def test_graph_shape_counts_weak_couplings():
     strong, _ = foreign.anisotropic(40, 1.0, 0.0)
     weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
     assert graph_shape(strong).weak < 0.05 < 0.3 < graph_shape(weak).weak
+
+
+def _lap27(m):
+    """A 27-point Laplacian on an m^3 grid (off-diagonals -1, diagonal 26): every coupling 1/26 of the diagonal."""
+    one = sp.diags([1.0, 1.0, 1.0], [-1, 0, 1], (m, m))
+    return (27.0 * sp.identity(m ** 3) - sp.kron(sp.kron(one, one), one)).tocsr()
+
+
+def test_wide_rows_lower_the_strength_threshold():
+    """Where the median row holds no coupling as strong as THETA (a 27-point stencil's are 1/26 of the diagonal), the
+    threshold drops to half that row's largest share, so aggregates form (at THETA each row stood alone and the coarse
+    operator was A itself); 5- and 7-point stencils, 9-point anisotropy and P1 tets keep THETA. HTPPC reaches its
+    rtol in 20 iterations, and -ksp_view says what it took."""
+    for A in (foreign.dmda(2, 40)[0], foreign.dmda(3, 16)[0], foreign.anisotropic(40)[0],
+              meshes.p1_laplacian(3, 3000)[0]):
+        assert threshold(sampled_shares(sp.csr_matrix(A))[1]) == THETA
+    A = _lap27(22)                                  # above the whole-matrix ICC(0)'s 8000 rows
+    assert threshold(sampled_shares(A)[1]) == pytest.approx(0.5 / 26)
+    assert np.bincount(aggregates(A, second="pairs")).min() >= 8
+    reason, its, relres, ksp, _ = solve(A, np.random.default_rng(0).standard_normal(A.shape[0]))
+    assert reason > 0 and its <= 20 and relres <= 1e-8, (reason, its, relres)
+    assert "strong couplings from 0.0192 (wide rows)" in lines(ksp)
 
 
 # ------------------------------------------------------------------ HTPPC on foreign matrices

@@ -24,6 +24,7 @@ from petsc4py import PETSc
 from . import inner, nearnull, nullspace, scaling, sizing
 from ..checks import rayleigh_reason
 from ..events import phase
+from .aggregation import THETA
 from .coarsesolve import CoarseSolve
 from .config import COARSE_TEXT
 from .forms import Forms
@@ -175,8 +176,9 @@ class TwoLevelPC:
         names = [name for name in st.auto if name != "aggregation" or lv.kind == "aggregation"]
         names = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
         auto = f" ({names} by the problem: {st.dim}-D)" if names else ""
-        size = (f"mean {lv.sizes.mean():.1f} rows, second pass {cfg.aggregation}" if lv.kind == "aggregation"
-                else f"L={cfg.leaf}")
+        strength = "" if st.theta == THETA else f", strong couplings from {st.theta:.3g} (wide rows)"
+        size = (f"mean {lv.sizes.mean():.1f} rows, second pass {cfg.aggregation}{strength}"
+                if lv.kind == "aggregation" else f"L={cfg.leaf}")
         lone = st.coll.sum(int(lay.decoupled.sum()))
         shape = [f"{st.shape.describe()} (this rank's rows)"] if st.shape is not None else []
         form = self.forms.form()

@@ -5,7 +5,8 @@ d ~ log(|B(2R)| / |B(R)|) / log 2 over a few sampled rows (5-point and 9-point s
 give 1.6-1.7, 7-point stencils and tet meshes 2.3-2.6; the cut is :data:`CUT`). The mean number of nonzeros
 per row cannot tell a 9-point 2-D stencil or a triangle mesh from a 3-D one. The anisotropy is the share of
 off-diagonal couplings that are weak in smoothed aggregation's sense. Cheap: a breadth-first search from
-``SAMPLES`` rows, whose work is the balls' size (by sparse products where rows are rich), and the weak share of :data:`WEAK_ROWS` rows with the diagonal;
+``SAMPLES`` rows, whose work is the balls' size (by sparse products where rows are rich), and the strength
+threshold and weak share of :data:`~.aggregation.SAMPLE_ROWS` rows with the diagonal;
 no other pass over the whole matrix (1.1-7 ms at 64k rows and 5-17 ms at 1M on the foreign study's matrices,
 against 3.5-16 and 53-119 ms with a pass that removed stored zeros first; small matrices by one compiled
 shortest-path search). PETSc-free.
@@ -17,12 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .aggregation import THETA
+from .aggregation import sampled_shares, threshold
 from .csr import row_entries
 
 SAMPLES = 16        # rows whose balls are grown
 RADIUS = 2          # the balls compared have radius RADIUS and 2 RADIUS
-WEAK_ROWS = 4096    # rows sampled for the share of weak couplings
 CUT = 2.0           # growth exponent above which the graph is taken as 3-D
 PRODUCTS = (60000, 8.0, 2000000)   # the balls grow by sparse products up to this many stored entries, or with
                                     # more stored entries per row than this up to this many (:func:`_by_products`)
@@ -41,16 +41,19 @@ class GraphShape:
         The measured ball-growth exponent (nan where too few coupled rows were sampled).
     weak : float
         Share of nonzero off-diagonal couplings below the strength threshold.
+    theta : float
+        The strength threshold (:func:`~.aggregation.threshold`).
     """
 
     dim: int
     growth: float
     weak: float
+    theta: float = float("nan")
 
     def describe(self) -> str:
         """One line for ``-ksp_view``."""
         growth = "n/a" if np.isnan(self.growth) else f"{self.growth:.2f}"
-        weak = "" if np.isnan(self.weak) else f", {100 * self.weak:.0f}% weak couplings"
+        weak = "" if np.isnan(self.weak) else f", {100 * self.weak:.0f}% weak couplings (at {self.theta:.3g})"
         return f"graph: {self.dim}-D (ball growth exponent {growth}){weak}"
 
 
@@ -125,28 +128,22 @@ def _coupled_seeds(A, samples, rng) -> np.ndarray:
     return rng.choice(found, min(samples, found.size), replace=False)
 
 
-def _weak_share(A, every) -> float:
-    """Share of the nonzero off-diagonal couplings of every ``every``-th row that are weak."""
-    rows = np.arange(0, A.shape[0], every)
-    where, owner = row_entries(A.indptr, rows)
-    row, col, val = rows[owner], A.indices[where], A.data[where]
-    off = (val != 0) & (col != row)
-    diag = np.abs(A.diagonal())                                       # scipy's C loop: one read per row
-    strong = np.abs(val[off]) >= THETA * np.sqrt(diag[row[off]] * diag[col[off]])
-    return float(1.0 - strong.mean()) if strong.size else 0.0
-
-
-def graph_shape(A, seed=0, weak=True, samples=SAMPLES) -> GraphShape:
-    """The shape of a square CSR ``A``'s graph (nonzero entries only) from ``samples`` balls; ``weak`` False
-    leaves the share of weak couplings out (nan), when only the dimension is wanted."""
-    weak = _weak_share(A, max(1, A.shape[0] // WEAK_ROWS)) if weak else float("nan")
+def graph_shape(A, seed=0, want_weak=True, samples=SAMPLES) -> GraphShape:
+    """The shape of a square CSR ``A``'s graph (nonzero entries only) from ``samples`` balls; ``want_weak``
+    False leaves the strength threshold and the share of weak couplings out (nan), when only the dimension is
+    wanted."""
+    theta = weak = float("nan")
+    if want_weak:
+        share, largest = sampled_shares(A)
+        theta = threshold(largest)
+        weak = float(np.mean(share < theta)) if share.size else 0.0
     seeds = _coupled_seeds(A, samples, np.random.default_rng(seed))
     if seeds.size < samples:
-        return GraphShape(2, float("nan"), weak)
+        return GraphShape(2, float("nan"), weak, theta)
     if A.shape[0] * seeds.size <= PATHS:
         balls = _ball_sizes_by_paths
     else:
         balls = _ball_sizes_by_products if _by_products(A) else _ball_sizes
     small, large = balls(A, seeds.astype(np.int64), RADIUS)
     growth = float(np.median(np.log2(large / small)))
-    return GraphShape(3 if growth > CUT else 2, growth, weak)
+    return GraphShape(3 if growth > CUT else 2, growth, weak, theta)

@@ -243,7 +243,7 @@ def _cut_fraction(A, leaves) -> float:
     return float(np.count_nonzero(leaf[rows[off]] != leaf[A.indices[off]]) / max(np.count_nonzero(off), 1))
 
 
-def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard") -> Leaves:
+def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard", theta=None) -> Leaves:
     """Leaves for ``A`` by layout.
 
     Parameters
@@ -265,13 +265,15 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standar
         Block size: aggregation leaves hold whole nodes of ``bs`` rows.
     second : {'standard', 'pairs'}
         Aggregation leaves: the kind of the passes after the first (:func:`~.aggregation.aggregates`).
+    theta : float, optional
+        Aggregation leaves: the first pass's strength threshold (None: :func:`~.aggregation.threshold`'s).
     """
     if layout not in LAYOUTS:
         raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
     A = check_square(A)
     t0 = time.perf_counter()
     if layout == "aggregation" or (layout == "auto" and coords is None):
-        return part_leaves(A, aggregates(A, bs=bs, second=second), "aggregation", t0, smooth=False)
+        return part_leaves(A, aggregates(A, theta, bs=bs, second=second), "aggregation", t0, smooth=False)
     if layout == "graph":
         xy = grid_coordinates(A)
         if xy is not None:

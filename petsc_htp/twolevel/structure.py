@@ -15,7 +15,7 @@ import numpy as np
 from . import coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import ghost_values
-from .aggregation import THETA
+from .aggregation import THETA, sampled_shares, threshold
 from .csr import compact
 from .graphshape import graph_shape
 from .leaflayout import layout
@@ -55,7 +55,11 @@ class Structure:
         self.fixed = nearnull.count(mat)
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         self.cfg = cfg = self.resolved(cfg, coords is None)
-        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation)
+        theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
+                 else threshold(sampled_shares(self.block)[1]))         # coordinates: aggregation leaves if asked
+        self.theta = float(coll.min_array(np.array([theta]))[0])      # strong couplings: the leaves' and moved()'s
+        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation,
+                                    self.theta)
         if cfg.coarse != "learned":          # only the network reads the block again; on one rank it is a view of
             self.block = None                # the Mat's arrays, not to be kept, on several a copy of the rank's rows
         self.lay = layout(rows, start, self.leaves)
@@ -89,11 +93,11 @@ class Structure:
                                    aggregation=second)
 
     def _weak_inside(self, data) -> int:
-        """Weak couplings (:data:`aggregation.THETA`) among the sampled ones inside the leaves (:meth:`_weak_maps`),
-        for values ``data`` of the analysed pattern."""
+        """Weak couplings (at :attr:`theta`: :func:`.aggregation.threshold`, the lowest over the ranks) among the
+        sampled ones inside the leaves (:meth:`_weak_maps`), for values ``data`` of the analysed pattern."""
         src, row_diag, col_diag = self._weak_maps()
         vals = data[src]
-        bound = THETA * THETA * np.abs(data[row_diag] * data[col_diag])
+        bound = self.theta * self.theta * np.abs(data[row_diag] * data[col_diag])
         return int(np.count_nonzero((vals * vals < bound) & (vals != 0)))
 
     def moved(self, rows) -> bool:
