@@ -17,6 +17,7 @@ from petsc_htp.twolevel import sizing
 from petsc_htp.twolevel.aggregation import DECOUPLED_LEAF, THETA, aggregates, decoupled_rows, sampled_shares, threshold
 from petsc_htp.twolevel.graphshape import graph_shape
 from petsc_htp.twolevel.leaves import choose_leaves
+from petsc_htp.twolevel.structure import WEAK_ROWS
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "dmda_poisson.py"
 
@@ -253,15 +254,15 @@ def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
     assert (text.startswith("whole matrix:") and kind in text) if kind else "leaves: aggregation" in text, text
 
 
-@pytest.mark.parametrize("n", [12000, 250000])
+@pytest.mark.parametrize("n", [10000, 250000])
 def test_new_leaves_when_the_couplings_move_and_not_otherwise(n):
-    """A coefficient jump that moved makes new leaves, the same couplings scaled do not; at 250 000 rows the weak
-    couplings are counted on a sample of those inside the leaves (every k-th, Structure.stride)."""
+    """A coefficient jump that moved makes new leaves, the same couplings scaled do not; the weak couplings are
+    counted on a sample of the rows (every k-th, Structure.stride: 1 up to WEAK_ROWS rows)."""
     A0, b = CASES["dmda2d"](n, 0)
     reason, its, _, ksp, mat = solve(A0, b)
     ctx = ksp.getPC().getPythonContext()
     assert ctx.analysis_count == 1 and reason > 0
-    assert (ctx.analysis.st.stride > 1) == (n > 100000)           # a sample of 131 072 at most
+    assert ctx.analysis.st.stride == max(1, n // WEAK_ROWS)
     A0.data *= 2.0                                        # the same shape of the couplings: numeric step only
     mat.setValuesCSR(A0.indptr, A0.indices, A0.data)
     mat.assemble()

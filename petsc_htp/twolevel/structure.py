@@ -16,14 +16,15 @@ from . import coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import ghost_values
 from .aggregation import THETA, sampled_shares, threshold
-from .csr import compact
+from .csr import compact, row_entries
 from .graphshape import graph_shape
 from .leaflayout import layout
 from .leaves import choose_leaves
 
 WEAK_GROWTH = 2.0       # aggregation leaves are made anew once they hold this many times their weak couplings
-WEAK_SAMPLE = 131072    # couplings inside the leaves counted at most (every k-th of them): at 1M rows the count
-# over all 2.6 million took 0.25 s of the analysis and again of every sequence frame, and its maps 50 MB
+WEAK_ROWS = 8192        # rows of D whose couplings inside the leaves are counted (every k-th): at 1M rows the count
+# over all 2.6 million took 0.25 s of the analysis and again of every sequence frame, and its maps 50 MB; at 65 536
+# rows, a sample of every k-th coupling (131 072 at most) still 4 ms
 
 
 class Structure:
@@ -70,16 +71,18 @@ class Structure:
             self.weak_made = self._weak_inside(rows.data)     # its sampled maps are kept for moved()
 
     def _weak_maps(self) -> tuple:
-        """Where every ``stride``-th off-diagonal entry of D (at most :data:`WEAK_SAMPLE`) sits in A's values, and
-        where the diagonal entries of its row and of its column sit; made on first use and kept."""
+        """Where the off-diagonal entries of every ``stride``-th row of D (about :data:`WEAK_ROWS` rows) sit in A's
+        values, and where the diagonal entries of their rows and of their columns sit; made on first use and kept."""
         if self._weak is None:
             lay = self.lay
-            r = np.repeat(np.arange(lay.n, dtype=np.int32), np.diff(lay.d_indptr))
-            off = np.flatnonzero(r != lay.d_indices)
-            self.stride = max(1, off.size // WEAK_SAMPLE)
-            off = off[::self.stride]
-            diag_src = lay.d_src[lay.d_diag[lay.d_leaf_row]]                 # A's diagonal entry of each D row
-            self._weak = (lay.d_src[off], diag_src[r[off]], diag_src[lay.d_indices[off]])
+            self.stride = max(1, lay.n // WEAK_ROWS)
+            picked = np.arange(0, lay.n, self.stride)
+            where, owner = row_entries(lay.d_indptr, picked)
+            r, c = picked[owner], lay.d_indices[where]
+            off = r != c
+            leaf_row = lay.d_leaf_row
+            diag_src = lay.d_src[lay.d_diag[leaf_row[r[off]]]], lay.d_src[lay.d_diag[leaf_row[c[off]]]]
+            self._weak = (lay.d_src[where[off]],) + diag_src
         return self._weak
 
     def resolved(self, cfg, bare):
