@@ -168,7 +168,7 @@ def test_wide_rows_lower_the_strength_threshold():
 @pytest.mark.parametrize("case, second, coarse", [
     ("dmda2d", "pairs", "const"), ("dmda3d", "pairs", "const"), ("free_surface", "pairs", "const"),
     ("aniso_e0.01_a30", "standard", "eig"), ("fem_tri", "standard", "eig"), ("fem_tet", "pairs", "const"),
-    ("lognormal", "pairs", "const"), ("neumann", "pairs", "const")])
+    ("fem_hex", "pairs", "const"), ("lognormal", "pairs", "const"), ("neumann", "pairs", "const")])
 def test_default_converges_within_40_iterations_on_foreign_matrices(case, second, coarse):
     """The defaults by what the graph shows: in 3-D, and in 2-D where rows are as sparse as a 5-point stencil's,
     the first pass's aggregates paired, with the const space; in 2-D where rows are richer standard passes with

@@ -27,6 +27,7 @@ CASES = {
     "aniso_e0.001_a45": lambda n, k: foreign.anisotropic(_side(n, 2), 0.001, np.pi / 4, k),
     "fem_tri": lambda n, k: meshes.p1_laplacian(2, n, 0, k),
     "fem_tet": lambda n, k: meshes.p1_laplacian(3, n, 0, k),
+    "fem_hex": lambda n, k: meshes.q1_laplacian(n, k),
     "lognormal": lambda n, k: foreign.lognormal(_side(n, 2), 1e10, k),
     "neumann": lambda n, k: foreign.neumann(_side(n, 2), 1e3, k),
 }

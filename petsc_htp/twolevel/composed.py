@@ -176,14 +176,15 @@ class TwoLevelPC:
         names = [name for name in st.auto if name != "aggregation" or lv.kind == "aggregation"]
         names = ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
         auto = f" ({names} by the problem: {st.dim}-D)" if names else ""
-        strength = "" if st.theta == THETA else f", strong couplings from {st.theta:.3g} (wide rows)"
-        size = (f"mean {lv.sizes.mean():.1f} rows, second pass {cfg.aggregation}{strength}"
-                if lv.kind == "aggregation" else f"L={cfg.leaf}")
+        wide = lv.kind == "aggregation" and st.theta != THETA
+        strength = f", strong couplings from {st.theta:.3g} (wide rows)" if wide else ""
+        size = (f"mean {lv.sizes.mean():.1f} rows, second pass {cfg.aggregation}" if lv.kind == "aggregation"
+                else f"L={cfg.leaf}")
         lone = st.coll.sum(int(lay.decoupled.sum()))
         shape = [f"{st.shape.describe()} (this rank's rows)"] if st.shape is not None else []
         form = self.forms.form()
         return shape + [
-                f"leaves: {lv.kind}, {size}{auto}, {st.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), "
+                f"leaves: {lv.kind}, {size}{auto}{strength}, {st.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), "
                 f"sizes {lv.sizes.min()}-{lv.max_size}; {st.n_pieces} pieces"
                 + (f", {lone} of them decoupled rows (no coarse vector)" if lone else "")
                 + f"; {self.leafsolver.describe()}",
