@@ -119,6 +119,18 @@ def local_rows(mat, copy=False):
         lib.MatRestoreRowIJ(*ij)
 
 
+@contextlib.contextmanager
+def diagonal_block(mat, rows):
+    """This rank's diagonal block of ``mat`` (its own rows and columns) as scipy CSR for the duration of the block:
+    ``rows`` (this rank's rows, :func:`local_rows`) on one rank, else the MPIAIJ's own diagonal block, by
+    :func:`local_rows` (a view of PETSc's arrays where it is SEQAIJ: no column slicing of ``rows``)."""
+    if mat.getComm().getSize() == 1:
+        yield rows
+        return
+    with local_rows(mat.getDiagonalBlock()) as block:
+        yield block
+
+
 @functools.lru_cache(maxsize=1)
 def _c_api():
     """PETSc's C library (reached through petsc4py's extension module) and the ctypes type of PetscInt."""

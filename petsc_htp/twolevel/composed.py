@@ -24,6 +24,7 @@ from petsc4py import PETSc
 from . import inner, nearnull, nullspace, scaling, sizing
 from ..checks import rayleigh_reason
 from ..events import phase
+from ..petscmat import diagonal_block
 from .aggregation import THETA
 from .coarsesolve import CoarseSolve
 from .config import COARSE_TEXT
@@ -107,7 +108,8 @@ class TwoLevelPC:
                 if new_space:
                     self.its, weights = [], None
                     if self.space.flat and not self.space.null_components:    # a null constant stays
-                        weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll)
+                        with diagonal_block(self.mat, rows) as block:
+                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density), nearnull.vectors(self.mat), weights)
                 else:

@@ -21,16 +21,17 @@ from .aggregation import decoupled_rows
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 
 
-def quotients(rows, start, coll) -> tuple:
+def quotients(rows, start, coll, block=None) -> tuple:
     """(the constant's quotient, z's quotient, z) with z = |diag|^-1/2 on this rank's ``rows`` (CSR, global columns,
     local rows ``start`` ...; couplings to other ranks' rows and decoupled rows left out); the quotients are sums
-    over all ranks (collective)."""
+    over all ranks (collective). ``block``: the rows' diagonal block (this rank's columns), where it is at hand
+    (:func:`petsc_htp.petscmat.diagonal_block`); else it is cut from ``rows``."""
     n = rows.shape[0]
     diag = np.abs(rows.diagonal(k=start))
     z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
     coupled = ~decoupled_rows(rows, start)
-    local = rows
-    if rows.shape[1] != n:                                      # this rank's columns only, by compiled products
+    local = rows if block is None else block
+    if local.shape[1] != n:                                     # this rank's columns only, by compiled products
         col = rows.indices - start
         inside = (col >= 0) & (col < n)
         local = sp.csr_matrix((np.where(inside, rows.data, 0.0), np.where(inside, col, 0), rows.indptr), shape=(n, n))
@@ -42,8 +43,8 @@ def quotients(rows, start, coll) -> tuple:
     return one, rough, z
 
 
-def weights(rows, start, coll):
+def weights(rows, start, coll, block=None):
     """(z, (the constant's quotient, z's)) where z = |diag(A)|^-1/2 is the smoother vector on this rank's rows (see
-    the module docstring), else (None, the quotients). Collective."""
-    one, rough, z = quotients(rows, start, coll)
+    the module docstring), else (None, the quotients); ``block`` as :func:`quotients` takes it. Collective."""
+    one, rough, z = quotients(rows, start, coll, block)
     return (z if rough < RATIO * one else None), (one, rough)

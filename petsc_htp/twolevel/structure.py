@@ -14,7 +14,7 @@ import numpy as np
 
 from . import coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
-from ..petscmat import ghost_values
+from ..petscmat import diagonal_block, ghost_values
 from .aggregation import THETA, sampled_shares, threshold
 from .csr import compact, row_entries
 from .graphshape import graph_shape
@@ -45,10 +45,22 @@ class Structure:
 
     def __init__(self, mat, rows, coords, cfg, net_rank=None):
         self.coll = coll = Collective(mat.getComm())
-        start, end = mat.getOwnershipRange()
+        start = mat.getOwnershipRange()[0]
         self.N = mat.getSize()[0]
-        self.block = rows if coll.size == 1 else rows[:, start:end].tocsr()
-        self.shape = graph_shape(self.block) if coords is None else None
+        with diagonal_block(mat, rows) as block:
+            self._leaves(mat, rows, block, coords, cfg)
+        self.lay = layout(rows, start, self.leaves)
+        self._components(mat, rows)
+        self._columns(net_rank, rows)
+        self._weak = None
+        if self.leaves.kind == "aggregation":
+            self.weak_made = self._weak_inside(rows.data)     # its sampled maps are kept for moved()
+
+    def _leaves(self, mat, rows, block, coords, cfg):
+        """What the graph of this rank's diagonal ``block`` shows, the problem-sized configuration and the leaves;
+        the block is kept (:attr:`block`, a copy on several ranks) only for a learned coarse space's network."""
+        coll = self.coll
+        self.shape = graph_shape(block) if coords is None else None
         local = sizing.dimension(None if coords is None else coords.shape[1], self.shape)
         self.dim = int(coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto"),
@@ -57,18 +69,12 @@ class Structure:
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         self.cfg = cfg = self.resolved(cfg, coords is None)
         theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
-                 else threshold(sampled_shares(self.block)[1]))         # coordinates: aggregation leaves if asked
+                 else threshold(sampled_shares(block)[1]))              # coordinates: aggregation leaves if asked
         self.theta = float(coll.min_array(np.array([theta]))[0])      # strong couplings: the leaves' and moved()'s
-        self.leaves = choose_leaves(self.block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation,
+        self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation,
                                     self.theta)
-        if cfg.coarse != "learned":          # only the network reads the block again; on one rank it is a view of
-            self.block = None                # the Mat's arrays, not to be kept, on several a copy of the rank's rows
-        self.lay = layout(rows, start, self.leaves)
-        self._components(mat, rows)
-        self._columns(net_rank, rows)
-        self._weak = None
-        if self.leaves.kind == "aggregation":
-            self.weak_made = self._weak_inside(rows.data)     # its sampled maps are kept for moved()
+        learned = cfg.coarse == "learned"             # only the network reads the block again (the analysis)
+        self.block = (block if coll.size == 1 else block.copy()) if learned else None
 
     def _weak_maps(self) -> tuple:
         """Where the off-diagonal entries of every ``stride``-th row of D (about :data:`WEAK_ROWS` rows) sit in A's
