@@ -135,6 +135,26 @@ def test_every_ball_search_gives_the_same_balls():
     assert gs._by_products(meshes.p1_laplacian(3, 8000)[0].tocsr()) and not gs._by_products(foreign.dmda(2, 256)[0])
 
 
+def test_a_dense_row_is_reached_but_not_grown_through():
+    """An arrow matrix (a chain and one row coupled to all): the balls follow the chain, so a ball of radius 4 holds
+    at most its 9 chain rows and the dense row, in every search, and HTPPC solves it."""
+    from petsc_htp.twolevel import graphshape as gs
+
+    n = 20000
+    chain = sp.diags([-1.0, 4.0, -1.0], [-1, 0, 1], (n, n), format="lil")
+    chain[0, 1:] = 0.01
+    chain[1:, 0] = 0.01
+    A = chain.tocsr()
+    seeds = gs._coupled_seeds(A, gs.SAMPLES, np.random.default_rng(0)).astype(np.int64)
+    G = gs._without_hubs(A)
+    assert G is not A and gs._without_hubs(B := foreign.dmda(2, 40)[0]) is B
+    for search in (gs._ball_sizes, gs._ball_sizes_by_products, gs._ball_sizes_by_paths):
+        assert search(G, seeds, gs.RADIUS).max() <= 2 * 2 * gs.RADIUS + 2
+    assert graph_shape(A).dim == 2
+    reason, its, relres, _, _ = solve(A, np.ones(n))
+    assert reason > 0 and its <= 20 and relres <= 1e-8, (reason, its, relres)
+
+
 def test_graph_shape_counts_weak_couplings():
     strong, _ = foreign.anisotropic(40, 1.0, 0.0)
     weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
