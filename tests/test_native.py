@@ -62,6 +62,22 @@ def test_import_leaves_torch_out():
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
+def test_aggregation_loads_pyamg_kernels_without_pyamg_package():
+    """The leaves' PyAMG kernels load without ``pyamg/__init__`` (its gallery and solvers: about 40 ms of a first
+    setup); PyAMG imported afterwards finds the same modules and works."""
+    code = ("import sys, numpy as np, scipy.sparse as sp\n"
+            "from petsc_htp.twolevel.aggregation import aggregates\n"
+            "A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (400, 400)).tocsr()\n"
+            "part = aggregates(A, second='pairs')\n"
+            "assert 'pyamg' not in sys.modules and part.max() < 200, sorted(m for m in sys.modules if 'pyamg' in m)\n"
+            "from petsc_htp.twolevel.amgkernels import kernels\n"
+            "import pyamg\n"
+            "assert pyamg.amg_core.smoothed_aggregation is kernels('smoothed_aggregation')\n"
+            "print(len(pyamg.smoothed_aggregation_solver(A).levels) > 1)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "True", out.stderr[-2000:]
+
+
 def test_thread_pools_are_read_again_only_when_a_shared_object_was_loaded():
     """The BLAS and OpenMP pools are looked up again only when the process loaded a shared object: a pure-Python
     import keeps the pools found, an extension module's import (a library that may bring a pool) reads them

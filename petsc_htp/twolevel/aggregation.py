@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .amgkernels import kernels
 from .csr import indptr_of, row_entries
 
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
@@ -49,11 +50,10 @@ def decoupled_rows(A, start=0) -> np.ndarray:
 
 def strength(A, theta=THETA) -> sp.csr_matrix:
     """The strong couplings of ``A`` (diagonal kept): PyAMG's symmetric strength of connection."""
-    from pyamg import amg_core          # here, not at import: a small matrix's factor never needs PyAMG (38 ms)
-
     n = A.shape[0]
     Sp, Sj, Sx = np.empty_like(A.indptr), np.empty_like(A.indices), np.empty_like(A.data)
-    amg_core.symmetric_strength_of_connection(n, theta, A.indptr, A.indices, A.data, Sp, Sj, Sx)
+    kernels("smoothed_aggregation").symmetric_strength_of_connection(n, theta, A.indptr, A.indices, A.data,
+                                                                     Sp, Sj, Sx)
     nnz = int(Sp[-1])
     return sp.csr_matrix((Sx[:nnz], Sj[:nnz], Sp), shape=A.shape)
 
@@ -86,11 +86,9 @@ def threshold(largest, theta=THETA) -> float:
 
 def standard(S) -> tuple:
     """(count, aggregate of each row, -1 where a row has no strong neighbour) of PyAMG's standard aggregation."""
-    from pyamg import amg_core
-
     n = S.shape[0]
     agg, roots = np.empty(n, dtype=S.indices.dtype), np.empty(n, dtype=S.indices.dtype)
-    count = amg_core.standard_aggregation(n, S.indptr, S.indices, agg, roots)
+    count = kernels("smoothed_aggregation").standard_aggregation(n, S.indptr, S.indices, agg, roots)
     return int(count), agg.astype(np.int64)
 
 
@@ -99,8 +97,6 @@ def pairs(M, theta=PAIR_THETA) -> tuple:
     joins the unmatched neighbour that holds the largest share of both nodes' outside couplings,
     m_ij / sqrt(e_i e_j) with e_i = sum_(k != i) m_ik, where that share is at least ``theta``, or stays alone (so a
     pair does not straddle a coefficient jump, which a row-wise measure would prefer from the low side)."""
-    from pyamg import amg_core
-
     n = M.shape[0]
     rows = np.repeat(np.arange(n), np.diff(M.indptr))
     off = rows != M.indices
@@ -111,7 +107,7 @@ def pairs(M, theta=PAIR_THETA) -> tuple:
     strong = off & (share >= theta)
     S = sp.csr_matrix((share[strong], M.indices[strong], indptr_of(rows[strong], n)), shape=M.shape)
     agg, cpts = np.empty(n, dtype=S.indptr.dtype), np.empty(n, dtype=S.indptr.dtype)
-    count = amg_core.pairwise_aggregation(n, S.indptr, S.indices, S.data, agg, cpts)
+    count = kernels("smoothed_aggregation").pairwise_aggregation(n, S.indptr, S.indices, S.data, agg, cpts)
     return int(count), agg.astype(np.int64) - 1                    # the kernel numbers aggregates from 1
 
 

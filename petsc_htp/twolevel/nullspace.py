@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .amgkernels import kernels
 from .csr import compact
 
 NULL_TOL = 1e-10        # |row sum| <= NULL_TOL * max |a_ii| on every row of a component: A 1_c = 0
@@ -62,12 +63,11 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves, order=None) -> Pieces:
     rows contiguous), or in any order with ``order``, the structure's row of each row in the leaves' order.
     ``leaf_of_row`` is in the leaves' order.
     """
-    from pyamg import amg_core          # here, not at import: a small matrix's factor never needs PyAMG
 
     n = leaf_of_row.size
     it = np.int32 if max(n, int(indptr[-1])) < 2 ** 31 else np.int64
     label = np.empty(n, dtype=it)
-    amg_core.connected_components(n, indptr.astype(it, copy=False), indices.astype(it, copy=False), label)
+    kernels("graph").connected_components(n, indptr.astype(it, copy=False), indices.astype(it, copy=False), label)
     # PyAMG's compiled search follows each row's entries (no validation, no transpose: 50 against 250 ms for scipy's
     # at 1M rows); a pattern that is not symmetric (an entry one way only) can split a part, so scipy then decides
     if np.any(np.repeat(label, np.diff(indptr)) != label[indices]):
