@@ -218,7 +218,9 @@ class HTPPC:
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0)."""
         self._guess = None
         if self.setup is not None and not self.fallback_active:
-            stale = self._values is not None and pc.getOperators()[1].stateGet() != self._values[1]
+            amat, pmat = pc.getOperators()
+            stale = ((self._values is not None and pmat.stateGet() != self._values[1])
+                     or amat.handle != pmat.handle)      # M made from a Pmat other than the solved Amat
             self._guess = self.variant.presolve(self.setup, ksp, b, x, stale)
 
     def postSolve(self, pc, ksp, b, x):

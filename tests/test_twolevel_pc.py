@@ -153,6 +153,30 @@ def test_any_ksp_reaches_its_rtol_in_the_true_residual(frames, ksp_type):
     assert form == ("balanced" if ksp_type == "minres" else "deflated")
 
 
+def test_a_pmat_other_than_the_amat_takes_the_balanced_form():
+    """KSPSetOperators(A, P) with P != A: M is made from P, so the deflated form's start and shortcuts (which assume
+    the solved operator is P) would mislead the KSP (with A = P + 0.01 diag(P) CG stalled at a relative residual of
+    0.99); the balanced form, a fixed SPD operator, reaches the rtol."""
+    from petsc_htp.bench.foreigncases import CASES
+
+    P, b = CASES["dmda2d"](12000, 0)
+    A = (P + 0.01 * sp.diags(P.diagonal())).tocsr()
+    amat, pmat = petsc_mat(A, null=False), petsc_mat(P, null=False)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOperators(amat, pmat)
+    ksp.setType("cg")
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.setTolerances(rtol=1e-8, max_it=500)
+    ksp.getPC().setType("python")
+    ksp.getPC().setPythonContext(petsc_htp.HTPPC())
+    x, rhs = amat.createVecs()
+    rhs.setArray(b)
+    ksp.solve(rhs, x)
+    relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
+    assert ksp.getConvergedReason() > 0 and relres <= 1.01e-8, (ksp.getConvergedReason(), ksp.its, relres)
+    assert ksp.getPC().getPythonContext().setup.forms.form("cg") == "balanced"
+
+
 def test_values_change_reuses_the_analysis(frames):
     frame = frames[0]
     mat = petsc_mat(frame.A)

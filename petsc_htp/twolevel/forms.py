@@ -121,7 +121,9 @@ class Forms:
     def presolve(self, ksp, b, x, stale=False):
         """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
         this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP needs a symmetric
-        M, the preconditioner is ``stale`` (reused on new values: D B = I no longer holds for A), the coarse
+        M, the preconditioner is ``stale`` (reused on new values, or made from a Pmat other than the KSP's Amat:
+        D B = I no longer holds for A; the deflated start then left a Pmat + 0.3 diag solve at a residual of 1e5 and
+        a Pmat + 0.01 diag CG solve stalled), the coarse
         solve is not exact (:func:`.sizing.coarse_exact`) or needs refinement (:mod:`.coarsesolve`: a contrast of
         1e6 at 262 144 rows, where the deflated form still broke down on 3 of 4 frames and the balanced one on
         none)."""
