@@ -132,9 +132,9 @@ class TwoLevel:
     @staticmethod
     def solved(setup, its):
         """A KSPSolve with ``setup`` took ``its`` iterations: kept as the first and the last since its coarse space
-        was made (:func:`.twolevel.spacereuse.keeps`); a DirectPC keeps none."""
-        if hasattr(setup, "its"):
-            setup.its = setup.its[:1] + [its]
+        was made (:func:`.twolevel.spacereuse.keeps`), and the deflated form's start ends; a DirectPC keeps none."""
+        if hasattr(setup, "solved"):
+            setup.solved(its)
 
     @staticmethod
     def moved(analysis, A) -> bool:

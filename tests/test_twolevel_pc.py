@@ -177,6 +177,48 @@ def test_a_pmat_other_than_the_amat_takes_the_balanced_form():
     assert ksp.getPC().getPythonContext().setup.forms.form("cg") == "balanced"
 
 
+def test_htppc_inside_fieldsplit_and_a_bare_pcapply_take_the_symmetric_form():
+    """Under PCFIELDSPLIT (a PREONLY KSP per split, an outer CG) and for a PCApply outside any KSPSolve, HTPPC is
+    applied as the balanced form, a fixed SPD operator: the deflated form needs its start, which only a KSPSolve of
+    its own makes (without it, the outer CG ran to 10 000 iterations at a relative residual of 11)."""
+    from petsc_htp.bench.foreigncases import CASES
+
+    P1, b1 = CASES["dmda2d"](12000, 0)
+    P2, b2 = CASES["lognormal"](12000, 0)
+    A = sp.block_diag([P1, P2]).tocsr()
+    mat, n1 = petsc_mat(A, null=False), P1.shape[0]
+    prefix = f"tl{next(_PREFIXES)}_"
+    db = PETSc.Options(prefix)
+    for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 300,
+                 "pc_type": "fieldsplit", "pc_fieldsplit_type": "additive"}.items():
+        db.setValue(k, v)
+    for split in ("0", "1"):
+        for k, v in {"ksp_type": "preonly", "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"}.items():
+            db.setValue(f"fieldsplit_{split}_{k}", v)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(mat, mat)
+    ksp.getPC().setType("fieldsplit")
+    ksp.getPC().setFieldSplitIS(("0", PETSc.IS().createStride(n1, 0, 1, comm=PETSc.COMM_SELF)),
+                                ("1", PETSc.IS().createStride(A.shape[0] - n1, n1, 1, comm=PETSc.COMM_SELF)))
+    ksp.setFromOptions()
+    x, rhs = mat.createVecs()
+    rhs.setArray(np.r_[b1, b2])
+    ksp.solve(rhs, x)
+    relres = np.linalg.norm(np.r_[b1, b2] - A @ x.getArray()) / np.linalg.norm(np.r_[b1, b2])
+    assert ksp.getConvergedReason() > 0 and ksp.its <= 40 and relres <= 1.01e-8, (ksp.its, relres)
+    _, _, _, alone = solve(petsc_mat(P1, null=False), b1, htp_variant=None)    # its own solve: deflated
+    pc = alone.getPC()
+    assert pc.getPythonContext().setup.forms.form("cg") == "deflated"
+    u, v, mu, mv = (alone.getOperators()[0].createVecLeft() for _ in range(4))
+    rng = np.random.default_rng(0)
+    u.setArray(rng.standard_normal(n1))
+    v.setArray(rng.standard_normal(n1))
+    pc.apply(u, mu)
+    pc.apply(v, mv)
+    assert abs(v.dot(mu) - u.dot(mv)) <= 1e-10 * mu.norm() * v.norm()          # a PCApply of its own: symmetric
+
+
 def test_values_change_reuses_the_analysis(frames):
     frame = frames[0]
     mat = petsc_mat(frame.A)

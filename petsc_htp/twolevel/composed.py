@@ -142,6 +142,12 @@ class TwoLevelPC:
         """The form's start before a solve (:meth:`.forms.Forms.presolve`)."""
         return self.forms.presolve(ksp, b, x, stale)
 
+    def solved(self, its):
+        """A KSPSolve took ``its`` iterations: kept as the first and the last since the coarse space was made
+        (:func:`.spacereuse.keeps`); the deflated form's start ends with the solve."""
+        self.its = self.its[:1] + [its]
+        self.forms.started = False
+
     def check(self, probes=0) -> str:
         """Empty when every factorisation succeeded, the coarse space is finite and ``probes`` random Rayleigh
         quotients of the balanced M are positive, else why not (collective)."""
