@@ -175,6 +175,8 @@ def test_wide_rows_lower_the_strength_threshold():
     for A in (foreign.dmda(2, 40)[0], foreign.dmda(3, 16)[0], foreign.anisotropic(40)[0],
               meshes.p1_laplacian(3, 3000)[0]):
         assert threshold(sampled_shares(sp.csr_matrix(A))[1]) == THETA
+    rotated = sp.csr_matrix(CASES["aniso_e0.001_a45"](12000, 0)[0])      # the second pass keeps the first's theta:
+    assert np.bincount(aggregates(rotated, second="standard")).mean() < 16   # its graph's own gave 51-row leaves
     A = _lap27(22)                                  # above the whole-matrix ICC(0)'s 8000 rows
     assert threshold(sampled_shares(A)[1]) == pytest.approx(0.5 / 26)
     assert np.bincount(aggregates(A, second="pairs")).min() >= 8
