@@ -71,6 +71,7 @@ class HTPPC:
         self.analysis_count = self.numeric_count = 0
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
         self.n = self.inv_diag = self._pattern = self._values = self._coords = self._guess = None
+        self._started = 0.0                              # when the last KSPSolve began (preSolve)
         self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
@@ -216,7 +217,7 @@ class HTPPC:
 
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0)."""
-        self._guess = None
+        self._guess, self._started = None, time.perf_counter()
         if self.setup is not None and not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
@@ -226,7 +227,7 @@ class HTPPC:
     def postSolve(self, pc, ksp, b, x):
         """After each KSPSolve: tell the variant its iterations; give the KSP back its initial-guess flag."""
         if self.setup is not None and not self.fallback_active:
-            self.variant.solved(self.setup, ksp.getIterationNumber())
+            self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
         if self._guess is not None:
             ksp.setInitialGuessNonzero(self._guess)
             self._guess = None

@@ -130,11 +130,12 @@ class TwoLevel:
         return analysis
 
     @staticmethod
-    def solved(setup, its):
-        """A KSPSolve with ``setup`` took ``its`` iterations: kept as the first and the last since its coarse space
-        was made (:func:`.twolevel.spacereuse.keeps`), and the deflated form's start ends; a DirectPC keeps none."""
+    def solved(setup, its, seconds):
+        """A KSPSolve with ``setup`` took ``its`` iterations in ``seconds``: kept as the first and the last since its
+        coarse space and its leaves were made (:mod:`.twolevel.spacereuse`), and the deflated form's start ends; a
+        DirectPC keeps none."""
         if hasattr(setup, "solved"):
-            setup.solved(its)
+            setup.solved(its, seconds)
 
     @staticmethod
     def moved(analysis, A) -> bool:

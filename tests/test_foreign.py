@@ -277,24 +277,47 @@ def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
 
 
 @pytest.mark.parametrize("n", [10000, 250000])
-def test_new_leaves_when_the_couplings_move_and_not_otherwise(n):
-    """A coefficient jump that moved makes new leaves, the same couplings scaled do not; the weak couplings are
-    counted on a sample of the rows (every k-th, Structure.stride: 1 up to WEAK_ROWS rows)."""
-    A0, b = CASES["dmda2d"](n, 0)
+def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
+    """The same couplings scaled keep the leaves; a jump of 1e3 that moved keeps them too while the extra
+    iterations cost less than an analysis (spacereuse.keeps_leaves); a jump of 1e8 that moved makes new leaves
+    (Structure.jumped: at 1e10 old ones left CG to DIVERGED_DTOL). The weak couplings are counted on a sample of the rows
+    (every k-th, Structure.stride: 1 up to WEAK_ROWS rows)."""
+    from petsc_htp.twolevel.spacereuse import keeps_leaves
+
+    side = int(round(n ** 0.5))
+    A0, b = foreign.dmda(2, side, 1e3, 0)
     reason, its, _, ksp, mat = solve(A0, b)
     ctx = ksp.getPC().getPythonContext()
     assert ctx.analysis_count == 1 and reason > 0
-    assert ctx.analysis.st.stride == max(1, n // WEAK_ROWS)
+    assert ctx.analysis.st.stride == max(1, A0.shape[0] // WEAK_ROWS)
     A0.data *= 2.0                                        # the same shape of the couplings: numeric step only
     mat.setValuesCSR(A0.indptr, A0.indices, A0.data)
     mat.assemble()
     reason, same_its, _, _, _ = solve(A0, b, mat=mat, ksp=ksp)
     assert reason > 0 and ctx.analysis_count == 1 and ctx.numeric_count == 2 and abs(same_its - its) <= 1
-    A1, _ = CASES["dmda2d"](n, 1)                           # the inclusions moved: new leaves
+    A1, _ = foreign.dmda(2, side, 1e3, 1)                   # the inclusions moved, a mild jump
+    assert ctx.analysis.st.moved(sp.csr_matrix(A1)) and not ctx.analysis.st.jumped(sp.csr_matrix(A1))
     mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
     mat.assemble()
     reason, moved_its, relres, _, _ = solve(A1, b, mat=mat, ksp=ksp)
-    assert reason > 0 and ctx.analysis_count == 2 and moved_its <= 40 and relres <= 1e-8
+    kept = keeps_leaves(ctx.analysis.analysis_ms, [its, same_its], ctx.analysis.ms_per_it)
+    assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == (1 if kept else 2)
+    for seed in (2, 3):                                     # a jump of 1e8 that moved: new leaves every time
+        A2, _ = foreign.dmda(2, side, 1e8, seed)
+        mat.setValuesCSR(A2.indptr, A2.indices, A2.data)
+        mat.assemble()
+        before = ctx.analysis_count
+        reason, _, relres, _, _ = solve(A2, b, mat=mat, ksp=ksp)
+        assert reason > 0 and ctx.analysis_count == before + 1, (reason, relres)
+
+
+def test_leaves_are_kept_while_a_new_analysis_would_not_pay():
+    """keeps_leaves: no evidence (one solve) keeps them; extra iterations keep them while they cost no more than
+    the analysis took."""
+    from petsc_htp.twolevel.spacereuse import keeps_leaves
+
+    assert keeps_leaves(40.0, [], 2.0) and keeps_leaves(40.0, [30], 2.0)
+    assert keeps_leaves(40.0, [30, 50], 2.0) and not keeps_leaves(40.0, [30, 51], 2.0)
 
 
 # ------------------------------------------------------------------ the study

@@ -48,7 +48,7 @@ class Paper:
         return None
 
     @staticmethod
-    def solved(setup, its):
+    def solved(setup, its, seconds):
         """Nothing to record after a solve."""
 
     @staticmethod

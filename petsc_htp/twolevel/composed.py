@@ -32,6 +32,7 @@ from .forms import Forms
 from .leafsolvers import ExactLeaves, OverlappingLeaves
 from .operators import Operators
 from .space import CoarseSpace
+from .spacereuse import keeps_leaves
 from .structure import Structure
 
 
@@ -56,6 +57,7 @@ class TwoLevelPC:
     def __init__(self, mat, rows, coords, cfg, prefix="htp_", net=None):
         self.leafsolver = self.space = self.ops = self.coarse = self.forms = None
         self.times, self.numeric_count, self.quotients, self.its = {}, 0, None, []   # its: first, last solve with this W
+        self.leaf_its, self.ms_per_it = [], 0.0      # first, last solve with these leaves; the last's ms per iteration
         try:
             self._analyse(mat, rows, coords, cfg, prefix, net)
         except Exception:
@@ -87,9 +89,15 @@ class TwoLevelPC:
         self.analysis_ms = times["analysis"]
 
     def moved(self, rows) -> bool:
-        """Whether new values ``rows`` call for new leaves (:meth:`.structure.Structure.moved`), or the operator's
-        near null space has a new number of vectors (W's pattern)."""
-        return self.st.fixed != nearnull.count(self.mat) or self.st.moved(rows)
+        """Whether new values ``rows`` call for new leaves: the operator's near null space has a new number of
+        vectors (W's pattern), or the couplings moved away from the leaves (:meth:`.structure.Structure.moved`) and
+        either a severe jump moved into them (:meth:`.structure.Structure.jumped`) or new ones would pay
+        (:func:`.spacereuse.keeps_leaves`)."""
+        if self.st.fixed != nearnull.count(self.mat):
+            return True
+        if not self.st.moved(rows):
+            return False
+        return self.st.jumped(rows) or not keeps_leaves(self.analysis_ms, self.leaf_its, self.ms_per_it)
 
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
@@ -142,10 +150,13 @@ class TwoLevelPC:
         """The form's start before a solve (:meth:`.forms.Forms.presolve`)."""
         return self.forms.presolve(ksp, b, x, stale)
 
-    def solved(self, its):
-        """A KSPSolve took ``its`` iterations: kept as the first and the last since the coarse space was made
-        (:func:`.spacereuse.keeps`); the deflated form's start ends with the solve."""
+    def solved(self, its, seconds):
+        """A KSPSolve took ``its`` iterations in ``seconds``: kept as the first and the last since the coarse space
+        was made (:func:`.spacereuse.keeps`) and since the leaves were (:func:`.spacereuse.keeps_leaves`); the
+        deflated form's start ends with the solve."""
         self.its = self.its[:1] + [its]
+        self.leaf_its = self.leaf_its[:1] + [its]
+        self.ms_per_it = 1e3 * seconds / max(its, 1)
         self.forms.started = False
 
     def check(self, probes=0) -> str:

@@ -7,6 +7,11 @@ k >= 1 computes W at every k-th numeric setup. k = 0, the default, keeps W while
 :data:`AUTO_SLACK`) the iterations of the first solve with it, so values that moved away from W cost one frame's
 extra iterations before a new W. On the project's own frames in sequence mode W made one to three frames earlier
 served as well as a fresh one (``petsc-htp bench --studies sequence``, README).
+
+Leaves whose couplings moved (:meth:`.structure.Structure.moved`) are made anew only where that pays
+(:func:`keeps_leaves`): on the foreign study's sequences at 65 536 rows, whose coefficients move every frame,
+frames with the old leaves took 114-132 against 139-188 ms (DMDA 2-D, 39-48 against 34-35 iterations), 83-105
+against 131-151 (no-flux walls) and 120-176 against 491-614 (Q1 hexahedra, 27-30 against 16).
 """
 from __future__ import annotations
 
@@ -22,3 +27,12 @@ def keeps(every: int, age: int, its: list) -> bool:
     if every > 0:
         return age + 1 < every
     return bool(its) and age + 1 < AUTO_AGE and its[-1] <= AUTO_GROWTH * its[0] + AUTO_SLACK
+
+
+def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float) -> bool:
+    """Whether leaves whose couplings moved are kept: until a solve with them has taken more iterations than the
+    first with them (``its``: the first and the last since the analysis), a new analysis would not pay back within
+    one frame unless those extra iterations at ``ms_per_it`` cost more than the analysis took (``analysis_ms``)."""
+    if len(its) < 2:
+        return True
+    return (its[-1] - its[0]) * ms_per_it <= analysis_ms

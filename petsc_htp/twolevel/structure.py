@@ -22,6 +22,7 @@ from .leaflayout import layout
 from .leaves import choose_leaves
 
 WEAK_GROWTH = 2.0       # aggregation leaves are made anew once they hold this many times their weak couplings
+SEVERE = 1e-4           # a share this weak inside a leaf (a contrast of about 1e7 or more) is never left to old leaves
 WEAK_ROWS = 8192        # rows of D whose couplings inside the leaves are counted (every k-th): at 1M rows the count
 # over all 2.6 million took 0.25 s of the analysis and again of every sequence frame, and its maps 50 MB; at 65 536
 # rows, a sample of every k-th coupling (131 072 at most) still 4 ms
@@ -55,6 +56,7 @@ class Structure:
         self._weak = None
         if self.leaves.kind == "aggregation":
             self.weak_made = self._weak_inside(rows.data)     # its sampled maps are kept for moved()
+            self.severe_made = self._weak_inside(rows.data, SEVERE)
 
     def _leaves(self, mat, rows, block, coords, cfg):
         """What the graph of this rank's diagonal ``block`` shows, the problem-sized configuration and the leaves;
@@ -101,12 +103,14 @@ class Structure:
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
                                    aggregation=second)
 
-    def _weak_inside(self, data) -> int:
-        """Weak couplings (at :attr:`theta`: :func:`.aggregation.threshold`, the lowest over the ranks) among the
-        sampled ones inside the leaves (:meth:`_weak_maps`), for values ``data`` of the analysed pattern."""
+    def _weak_inside(self, data, theta=None) -> int:
+        """Weak couplings (at ``theta``, else :attr:`theta`: :func:`.aggregation.threshold`, the lowest over the
+        ranks) among the sampled ones inside the leaves (:meth:`_weak_maps`), for values ``data`` of the analysed
+        pattern."""
         src, row_diag, col_diag = self._weak_maps()
         vals = data[src]
-        bound = self.theta * self.theta * np.abs(data[row_diag] * data[col_diag])
+        theta = self.theta if theta is None else theta
+        bound = theta * theta * np.abs(data[row_diag] * data[col_diag])
         return int(np.count_nonzero((vals * vals < bound) & (vals != 0)))
 
     def moved(self, rows) -> bool:
@@ -114,9 +118,18 @@ class Structure:
         :data:`WEAK_GROWTH` times the weak couplings they held when made (plus 0.1 % of the rows), so leaves made
         anew would follow the couplings better (a coefficient jump that moved; 5x on a DMDA frame with new
         inclusions, which then takes 45 CG iterations against 26). Always False for other leaves."""
-        if self.leaves.kind != "aggregation":
-            return False
-        return self._weak_inside(rows.data) > WEAK_GROWTH * self.weak_made + 1e-3 * self.lay.n / self.stride
+        return self.leaves.kind == "aggregation" and self._grew(rows.data, None, self.weak_made)
+
+    def jumped(self, rows) -> bool:
+        """Whether new values ``rows`` put more couplings weaker than :data:`SEVERE` inside the leaves than they held
+        when made (as :meth:`moved` counts): a contrast of 1e7 or more that moved, which old leaves leave to CG (1e10
+        inclusions on a 10 000-row DMDA matrix: DIVERGED_DTOL)."""
+        return self.leaves.kind == "aggregation" and self._grew(rows.data, SEVERE, self.severe_made)
+
+    def _grew(self, data, theta, made) -> bool:
+        """Whether the couplings inside aggregation leaves weaker than ``theta`` (:meth:`_weak_inside`) grew past
+        :data:`WEAK_GROWTH` times ``made`` plus 0.1 % of the sampled rows."""
+        return self._weak_inside(data, theta) > WEAK_GROWTH * made + 1e-3 * self.lay.n / self.stride
 
     def _components(self, mat, rows):
         """Global piece numbering and the connected components of A over all ranks: on several, each rank's own
