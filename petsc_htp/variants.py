@@ -60,7 +60,7 @@ class TwoLevel:
 
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
-        self.net = None
+        self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -137,10 +137,14 @@ class TwoLevel:
         if hasattr(setup, "solved"):
             setup.solved(its, seconds)
 
-    @staticmethod
-    def moved(analysis, A) -> bool:
-        """Whether the new values ``A`` moved away from the leaves (a new analysis follows them)."""
-        return analysis.moved(A)
+    def moved(self, analysis, A) -> bool:
+        """Whether the new values ``A`` moved away from the leaves (a new analysis follows them), judged with what
+        old leaves cost the last time values moved (kept across analyses of the pattern)."""
+        moved = analysis.moved(A, self.stale_ms)
+        cost = analysis.stale_cost() if moved and hasattr(analysis, "stale_cost") else None
+        if cost is not None:
+            self.stale_ms = cost
+        return moved
 
     @staticmethod
     def apply(setup, x, y):

@@ -312,12 +312,13 @@ def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
 
 
 def test_leaves_are_kept_while_a_new_analysis_would_not_pay():
-    """keeps_leaves: no evidence (one solve) keeps them; extra iterations keep them while they cost no more than
-    the analysis took."""
+    """keeps_leaves: extra iterations keep them while they cost no more than the analysis took; after one solve,
+    what old leaves cost the last time values moved decides (never measured: they are tried)."""
     from petsc_htp.twolevel.spacereuse import keeps_leaves
 
     assert keeps_leaves(40.0, [], 2.0) and keeps_leaves(40.0, [30], 2.0)
     assert keeps_leaves(40.0, [30, 50], 2.0) and not keeps_leaves(40.0, [30, 51], 2.0)
+    assert keeps_leaves(40.0, [30], 2.0, penalty=40.0) and not keeps_leaves(40.0, [30], 2.0, penalty=41.0)
 
 
 # ------------------------------------------------------------------ the study

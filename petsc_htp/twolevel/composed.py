@@ -88,16 +88,21 @@ class TwoLevelPC:
             self.forms = Forms(mat, self.ops, self.leafsolver, self.coarse, st.cfg.form)
         self.analysis_ms = times["analysis"]
 
-    def moved(self, rows) -> bool:
+    def moved(self, rows, penalty=None) -> bool:
         """Whether new values ``rows`` call for new leaves: the operator's near null space has a new number of
         vectors (W's pattern), or the couplings moved away from the leaves (:meth:`.structure.Structure.moved`) and
         either a severe jump moved into them (:meth:`.structure.Structure.jumped`) or new ones would pay
-        (:func:`.spacereuse.keeps_leaves`)."""
+        (:func:`.spacereuse.keeps_leaves`; ``penalty``: what old leaves cost the last time values moved)."""
         if self.st.fixed != nearnull.count(self.mat):
             return True
         if not self.st.moved(rows):
             return False
-        return self.st.jumped(rows) or not keeps_leaves(self.analysis_ms, self.leaf_its, self.ms_per_it)
+        return self.st.jumped(rows) or not keeps_leaves(self.analysis_ms, self.leaf_its, self.ms_per_it, penalty)
+
+    def stale_cost(self):
+        """The ms the last solve with these leaves took beyond the first with them, or None after one solve."""
+        its = self.leaf_its
+        return (its[-1] - its[0]) * self.ms_per_it if len(its) > 1 else None
 
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""

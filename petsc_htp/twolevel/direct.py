@@ -50,7 +50,7 @@ class DirectPC:
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
     @staticmethod
-    def moved(rows) -> bool:
+    def moved(rows, penalty=None) -> bool:
         """Nothing here depends on the values' shape: never a new analysis for new values."""
         return False
 
