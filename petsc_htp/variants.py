@@ -140,8 +140,10 @@ class TwoLevel:
     def moved(self, analysis, A) -> bool:
         """Whether the new values ``A`` moved away from the leaves (a new analysis follows them), judged with what
         old leaves cost the last time values moved (kept across analyses of the pattern)."""
+        from .twolevel.spacereuse import stale_cost
+
         moved = analysis.moved(A, self.stale_ms)
-        cost = analysis.stale_cost() if moved and hasattr(analysis, "stale_cost") else None
+        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and hasattr(analysis, "leaf_its") else None
         if cost is not None:
             self.stale_ms = cost
         return moved

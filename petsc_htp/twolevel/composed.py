@@ -99,11 +99,6 @@ class TwoLevelPC:
             return False
         return self.st.jumped(rows) or not keeps_leaves(self.analysis_ms, self.leaf_its, self.ms_per_it, penalty)
 
-    def stale_cost(self):
-        """The ms the last solve with these leaves took beyond the first with them, or None after one solve."""
-        its = self.leaf_its
-        return (its[-1] - its[0]) * self.ms_per_it if len(its) > 1 else None
-
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
         lay, T, data = self.st.lay, {}, rows.data

@@ -38,3 +38,9 @@ def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float, penalty=None) 
     if len(its) < 2:
         return penalty is None or penalty <= analysis_ms
     return (its[-1] - its[0]) * ms_per_it <= analysis_ms
+
+
+def stale_cost(its: list, ms_per_it: float):
+    """The ms the last solve with a pattern's leaves took beyond the first with them (``its``: the first and the
+    last since the analysis), or None after one solve."""
+    return (its[-1] - its[0]) * ms_per_it if len(its) > 1 else None
