@@ -142,8 +142,8 @@ class TwoLevel:
         old leaves cost the last time values moved (kept across analyses of the pattern)."""
         from .twolevel.spacereuse import stale_cost
 
-        moved = analysis.moved(A, self.stale_ms)
-        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and hasattr(analysis, "leaf_its") else None
+        moved = analysis.moved(A, self.stale_ms)          # a DirectPC never moves
+        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved else None
         if cost is not None:
             self.stale_ms = cost
         return moved

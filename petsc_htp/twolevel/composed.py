@@ -57,7 +57,7 @@ class TwoLevelPC:
     def __init__(self, mat, rows, coords, cfg, prefix="htp_", net=None):
         self.leafsolver = self.space = self.ops = self.coarse = self.forms = None
         self.times, self.numeric_count, self.quotients, self.its = {}, 0, None, []   # its: first, last solve with this W
-        self.leaf_its, self.ms_per_it = [], 0.0      # first, last solve with these leaves; the last's ms per iteration
+        self.leaf_its, self.ms_per_it = [], 0.0      # first, last solve with these leaves; the last's ms/iteration
         try:
             self._analyse(mat, rows, coords, cfg, prefix, net)
         except Exception:
@@ -203,7 +203,8 @@ class TwoLevelPC:
         shape = [f"{st.shape.describe()} (this rank's rows)"] if st.shape is not None else []
         form = self.forms.form()
         return shape + [
-                f"leaves: {lv.kind}, {size}{auto}{strength}, {st.coll.sum(lv.n_leaves)} in all ({lv.n_leaves} on this rank), "
+                f"leaves: {lv.kind}, {size}{auto}{strength}, {st.coll.sum(lv.n_leaves)} in all "
+                f"({lv.n_leaves} on this rank), "
                 f"sizes {lv.sizes.min()}-{lv.max_size}; {st.n_pieces} pieces"
                 + (f", {lone} of them decoupled rows (no coarse vector)" if lone else "")
                 + f"; {self.leafsolver.describe()}",

@@ -35,9 +35,9 @@ def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float, penalty=None) 
     analysis), at ``ms_per_it``, cost more than the analysis took (``analysis_ms``). After one solve only, what old
     leaves cost the last time values moved (``penalty``, ms; None: never measured, so they are tried) decides: the
     3-D DMDA frames otherwise took old leaves every other frame (58 against 26 iterations)."""
-    if len(its) < 2:
-        return penalty is None or penalty <= analysis_ms
-    return (its[-1] - its[0]) * ms_per_it <= analysis_ms
+    cost = stale_cost(its, ms_per_it)
+    cost = penalty if cost is None else cost
+    return cost is None or cost <= analysis_ms
 
 
 def stale_cost(its: list, ms_per_it: float):
