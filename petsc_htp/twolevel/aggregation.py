@@ -159,8 +159,8 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard") -> np.ndar
     ``theta`` (None: :func:`threshold`'s for A; the standard passes after the first take the same on the aggregates'
     graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
-    module docstring). With a block size ``bs`` > 1 that divides the rows, the nodes' graph (:func:`node_graph`) is aggregated, so a
-    leaf holds whole nodes."""
+    module docstring). With a block size ``bs`` > 1 that divides the rows, the nodes' graph (:func:`node_graph`) is
+    aggregated, so a leaf holds whole nodes."""
     if second not in SECOND:
         raise ValueError(f"unknown aggregation pass {second!r}; expected one of {', '.join(SECOND)}")
     n = A.shape[0]
