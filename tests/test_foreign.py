@@ -155,10 +155,18 @@ def test_a_dense_row_is_reached_but_not_grown_through():
     assert reason > 0 and its <= 20 and relres <= 1e-8, (reason, its, relres)
 
 
-def test_graph_shape_counts_weak_couplings():
+def test_graph_shape_counts_weak_and_positive_couplings():
+    """The weak share follows the anisotropy; the positive share tells a rotated anisotropy's 9-point stencil (a
+    quarter of its couplings) from a mesh Laplacian's rows (none), which pair their aggregates (sizing.aggregation)."""
     strong, _ = foreign.anisotropic(40, 1.0, 0.0)
     weak, _ = foreign.anisotropic(40, 1e-4, 0.0)
     assert graph_shape(strong).weak < 0.05 < 0.3 < graph_shape(weak).weak
+    rotated = graph_shape(sp.csr_matrix(CASES["aniso_e0.01_a30"](4096, 0)[0]))
+    mesh = graph_shape(sp.csr_matrix(CASES["fem_tri"](4096, 0)[0]))
+    assert mesh.positive <= sizing.POSITIVE_MAX < 0.2 <= rotated.positive
+    assert "0% positive" in mesh.describe()
+    assert sizing.aggregation(2, 0, 7.0, "auto", mesh.positive) == "pairs"
+    assert sizing.aggregation(2, 0, 9.0, "auto", rotated.positive) == "standard"
 
 
 def _lap27(m):
@@ -189,12 +197,13 @@ def test_wide_rows_lower_the_strength_threshold():
 
 @pytest.mark.parametrize("case, second, coarse", [
     ("dmda2d", "pairs", "const"), ("dmda3d", "pairs", "const"), ("free_surface", "pairs", "const"),
-    ("aniso_e0.01_a30", "standard", "eig"), ("fem_tri", "standard", "eig"), ("fem_tet", "pairs", "const"),
+    ("aniso_e0.01_a30", "standard", "eig"), ("fem_tri", "pairs", "const"), ("fem_tet", "pairs", "const"),
     ("fem_hex", "pairs", "const"), ("lognormal", "pairs", "const"), ("neumann", "pairs", "const")])
 def test_default_converges_within_40_iterations_on_foreign_matrices(case, second, coarse):
-    """The defaults by what the graph shows: in 3-D, and in 2-D where rows are as sparse as a 5-point stencil's,
-    the first pass's aggregates paired, with the const space; in 2-D where rows are richer standard passes with
-    the eig space."""
+    """The defaults by what the graph shows: in 3-D, and in 2-D where rows are as sparse as a 5-point stencil's or
+    no coupling is positive (P1 triangles), the first pass's aggregates paired, with the const space; in 2-D where
+    rows are richer and a quarter of their couplings positive (rotated anisotropy) standard passes with the eig
+    space."""
     A, b = CASES[case](12000, 0)                          # above the small-matrix factor's sizes
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and its <= 40 and relres <= 1e-8, (case, reason, its, relres)

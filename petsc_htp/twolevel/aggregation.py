@@ -60,17 +60,20 @@ def strength(A, theta=THETA) -> sp.csr_matrix:
 
 def sampled_shares(A, rows=SAMPLE_ROWS) -> tuple:
     """The symmetric shares |a_ij| / sqrt(|a_ii a_jj|) of the nonzero off-diagonal entries of about ``rows`` evenly
-    spaced rows of a square CSR ``A`` (inf over a zero diagonal), and each such row's largest."""
+    spaced rows of a square CSR ``A`` (inf over a zero diagonal), each such row's largest, and the fraction of
+    those entries that are positive (0.0 where there are none)."""
     picked = np.arange(0, A.shape[0], max(1, A.shape[0] // rows))
     where, owner = row_entries(A.indptr, picked)
-    row, col, val = picked[owner], A.indices[where], np.abs(A.data[where])
+    row, col, signed = picked[owner], A.indices[where], A.data[where]
+    val = np.abs(signed)
     off = (val != 0) & (col != row)
+    positive = float(np.mean(signed[off] > 0)) if off.any() else 0.0
     diag = np.abs(A.diagonal())                                       # scipy's C loop: one read per row
     scale = np.sqrt(diag[row[off]] * diag[col[off]])
     share = np.divide(val[off], scale, out=np.full(scale.size, np.inf), where=scale > 0)
     largest = np.zeros(picked.size)
     np.maximum.at(largest, owner[off], share)
-    return share, largest[largest > 0]
+    return share, largest[largest > 0], positive
 
 
 def threshold(largest, theta=THETA) -> float:

@@ -4,9 +4,10 @@ The dimension comes from how fast graph balls grow: a ball of radius r holds abo
 d ~ log(|B(2R)| / |B(R)|) / log 2 over a few sampled rows (5-point and 9-point stencils and triangle meshes
 give 1.6-1.7, 7-point stencils and tet meshes 2.3-2.6; the cut is :data:`CUT`). The mean number of nonzeros
 per row cannot tell a 9-point 2-D stencil or a triangle mesh from a 3-D one. The anisotropy is the share of
-off-diagonal couplings that are weak in smoothed aggregation's sense. Cheap: a breadth-first search from
-``SAMPLES`` rows, whose work is the balls' size (by sparse products where rows are rich), and the strength
-threshold and weak share of :data:`~.aggregation.SAMPLE_ROWS` rows with the diagonal;
+off-diagonal couplings that are weak in smoothed aggregation's sense; the share that is positive tells rotated
+anisotropy's stencils from a mesh Laplacian's rows. Cheap: a breadth-first search from ``SAMPLES`` rows, whose
+work is the balls' size (by sparse products where rows are rich), and the strength threshold, weak and positive
+shares of :data:`~.aggregation.SAMPLE_ROWS` rows with the diagonal;
 no other pass over the whole matrix (1.1-7 ms at 64k rows and 5-17 ms at 1M on the foreign study's matrices,
 against 3.5-16 and 53-119 ms with a pass that removed stored zeros first; small matrices by one compiled
 shortest-path search). PETSc-free.
@@ -44,17 +45,22 @@ class GraphShape:
         Share of nonzero off-diagonal couplings below the strength threshold.
     theta : float
         The strength threshold (:func:`~.aggregation.threshold`).
+    positive : float
+        Share of sampled nonzero off-diagonal couplings that are positive (rotated anisotropy's 9-point stencils: a
+        quarter; P1 triangles of a Delaunay mesh and 5-point stencils: none); nan where not measured.
     """
 
     dim: int
     growth: float
     weak: float
     theta: float = float("nan")
+    positive: float = float("nan")
 
     def describe(self) -> str:
         """One line for ``-ksp_view``."""
         growth = "n/a" if np.isnan(self.growth) else f"{self.growth:.2f}"
         weak = "" if np.isnan(self.weak) else f", {100 * self.weak:.0f}% weak couplings (at {self.theta:.3g})"
+        weak += "" if np.isnan(self.positive) else f", {100 * self.positive:.0f}% positive"
         return f"graph: {self.dim}-D (ball growth exponent {growth}){weak}"
 
 
@@ -148,18 +154,18 @@ def graph_shape(A, seed=0, want_weak=True, samples=SAMPLES) -> GraphShape:
     """The shape of a square CSR ``A``'s graph (nonzero entries only) from ``samples`` balls; ``want_weak``
     False leaves the strength threshold and the share of weak couplings out (nan), when only the dimension is
     wanted."""
-    theta = weak = float("nan")
+    theta = weak = positive = float("nan")
     if want_weak:
-        share, largest = sampled_shares(A)
+        share, largest, positive = sampled_shares(A)
         theta = threshold(largest)
         weak = float(np.mean(share < theta)) if share.size else 0.0
     seeds = _coupled_seeds(A, samples, np.random.default_rng(seed))
     if seeds.size < samples:
-        return GraphShape(2, float("nan"), weak, theta)
+        return GraphShape(2, float("nan"), weak, theta, positive)
     if A.shape[0] * seeds.size <= PATHS:
         balls = _ball_sizes_by_paths
     else:
         balls = _ball_sizes_by_products if _by_products(A) else _ball_sizes
     small, large = balls(_without_hubs(A), seeds.astype(np.int64), RADIUS)
     growth = float(np.median(np.log2(large / small)))
-    return GraphShape(3 if growth > CUT else 2, growth, weak, theta)
+    return GraphShape(3 if growth > CUT else 2, growth, weak, theta, positive)

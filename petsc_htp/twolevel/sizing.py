@@ -45,6 +45,7 @@ from __future__ import annotations
 DIRECT_MAX = {2: 8000, 3: 1000}    # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
 WHOLE_ICC_MAX = {2: 8000, 3: 8000}  # bare matrices: rows up to which ICC(0) of the whole matrix beats the two-level
 RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
+POSITIVE_MAX = 0.05                 # 2-D: share of positive off-diagonal couplings up to which rich rows are paired
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
@@ -75,20 +76,22 @@ def coarse_space(dim, near, paired=False) -> str:
     return "const" if near or paired else COARSE[dim]
 
 
-def aggregation(dim, near, per_row, coarse="auto") -> str:
+def aggregation(dim, near, per_row, coarse="auto", positive=1.0) -> str:
     """The kind of the aggregation passes after the first (:mod:`.aggregation`): 'pairs' in 2-D where rows hold at
-    most :data:`RICH_ROW` stored entries (5-point stencils), the operator brings no near null vectors (``near``)
-    and the coarse space is ``auto`` or ``const`` (an eig or learned space chosen by the user keeps the leaves it
-    was measured on), else 'standard'. There leaves of paired aggregates (3-17 rows) with the const space cost less
-    than standard ones (10-40 rows) with the eig space, in about the same CG iterations, as their coarse LU is
-    scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README). Where
-    rows are richer (9-point stencils, P1 triangles) the const space on them takes far more iterations (rotated
-    anisotropy: 110-207 against 40-61) and the eig space on them a coarse LU of 1.5 times the rows at twice the
-    cost of the standard leaves' (the same study). In 3-D any bare matrix's aggregates are paired, rich rows too:
+    most :data:`RICH_ROW` stored entries (5-point stencils) or at most :data:`POSITIVE_MAX` of the sampled
+    off-diagonal couplings are ``positive`` (a mesh Laplacian's rows), the operator brings no near null vectors
+    (``near``) and the coarse space is ``auto`` or ``const`` (an eig or learned space chosen by the user keeps the
+    leaves it was measured on), else 'standard'. There leaves of paired aggregates (3-17 rows) with the const space
+    cost less than standard ones (10-40 rows) with the eig space, in about the same CG iterations, as their coarse
+    LU is scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README); P1
+    triangles at 16k-262k rows 12-20 % less time in 29-34 against 29-39 iterations, Q1 quadrilaterals (PyAMG's
+    9-point FE stencil, 65 536 rows) 132 against 214 ms. Where a quarter or more of the couplings are positive
+    (rotated anisotropy's 9-point stencils) the const space on paired leaves takes far more iterations (110-146
+    against 40-61). In 3-D any bare matrix's aggregates are paired, rich rows too:
     with two coarse V-cycles (:func:`coarse_exact`) the foreign study's DMDA case took 25-29 against 33-41 CG
     iterations from 32^3 to 128^3 and 0.88-1.05 times the time (10.5 against 11.9 s at 128^3), and the P1 tets at
     64 000 rows 40 against 47 iterations and 461 against 468-500 ms (results/foreign-20261126c and -d, README)."""
-    paired = not near and coarse in ("auto", "const") and (dim == 3 or per_row <= RICH_ROW)
+    paired = not near and coarse in ("auto", "const") and (dim == 3 or per_row <= RICH_ROW or positive <= POSITIVE_MAX)
     return "pairs" if paired else "standard"
 
 

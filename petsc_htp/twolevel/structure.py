@@ -69,6 +69,8 @@ class Structure:
                                               ("aggregation", cfg.aggregation == "auto")) if unset]
         self.fixed = nearnull.count(mat)
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
+        positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
+        self.positive = float(coll.max_array(np.array([positive]))[0])
         self.cfg = cfg = self.resolved(cfg, coords is None)
         theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
                  else threshold(sampled_shares(block)[1]))              # coordinates: aggregation leaves if asked
@@ -97,7 +99,7 @@ class Structure:
         """``cfg`` with its problem-sized fields (leaf 0, coarse and aggregation auto) set for this matrix, ``bare``
         (no coordinates: 'auto' ordering makes aggregation leaves) and its near null vectors (:mod:`.sizing`)."""
         second = (cfg.aggregation if cfg.aggregation != "auto"
-                  else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse))
+                  else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse, self.positive))
         paired = second == "pairs" and (cfg.ordering == "aggregation" or (cfg.ordering == "auto" and bare))
         coarse = sizing.coarse_space(self.dim, self.fixed, paired) if cfg.coarse == "auto" else cfg.coarse
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
