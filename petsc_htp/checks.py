@@ -26,3 +26,13 @@ def rayleigh_reason(lo, name: str) -> str:
     if lo <= 0:
         return f"Rayleigh probe found M indefinite (min r^T M r / r^T r = {lo:.3e})"
     return ""
+
+
+def check_message(prefix: str, reason: str, fallback: bool) -> str:
+    """What HTPPC (options prefix ``prefix``) prints when its setup's checks failed for ``reason``: that it applies
+    Jacobi instead (``fallback``), else a warning naming the option that would."""
+    who = f"HTPPC{' (' + prefix + ')' if prefix else ''}"
+    option = f"-{prefix}htp_fallback jacobi"
+    if fallback:
+        return f"{who}: {reason}; {option}: applying Jacobi (D^-1) instead"
+    return f"{who}: WARNING: {reason}; Krylov methods will break down (use {option})"

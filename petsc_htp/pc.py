@@ -28,16 +28,16 @@ operator's state changed, so ``-ksp_reuse_preconditioner`` skips both. ``-log_vi
 """
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
 from petsc4py import PETSc
 
+from .checks import check_message
 from .collective import Collective
 from .events import event
 from .pcoptions import HTPOptions
-from .pcview import view
+from .pcview import Inspection
 from .validation import check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows
 from .threads import set_threads
@@ -46,7 +46,7 @@ from .variants import variant_class
 __all__ = ["HTPPC", "attach"]
 
 
-class HTPPC:
+class HTPPC(Inspection):
     """petsc4py ``PCPYTHON`` context applying an HTP preconditioner.
 
     Constructed without arguments (``-pc_python_type petsc_htp.HTPPC``);
@@ -76,18 +76,12 @@ class HTPPC:
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
-    @staticmethod
-    def _opt(pc) -> str:
-        return "-" + (pc.getOptionsPrefix() or "") + "htp_"
-
     def setFromOptions(self, pc):
         """Read the options; with ``-help`` print them with their defaults."""
         self.opts = HTPOptions.from_petsc(pc.getOptionsPrefix() or "")
         if not self._help_shown and PETSc.Options().hasName("help"):
             self._help_shown = True
-            head = (f"HTPPC options (prefix {self._opt(pc)}; default: the two-level preconditioner, no network; "
-                    "-htp_variant paper: the paper's Hierarchical Transformer Preconditioner) -----")
-            PETSc.Sys.Print("\n".join([head] + self.opts.help_lines(self._opt(pc))), comm=pc.getComm())
+            PETSc.Sys.Print(self.opts.help_text("-" + (pc.getOptionsPrefix() or "") + "htp_"), comm=pc.getComm())
 
     def setUp(self, pc):
         """Analyse a new pattern, then run the numeric step for new values (each only when needed)."""
@@ -185,14 +179,9 @@ class HTPPC:
         """The setup's own checks; switch to Jacobi when asked to."""
         reason = self.fallback_reason = self.setup.check(opts.probes)
         self.fallback_active = bool(reason) and opts.fallback == "jacobi"
-        name = pc.getOptionsPrefix() or ""
-        who = f"HTPPC{' (' + name + ')' if name else ''}"
-        if self.fallback_active:
-            PETSc.Sys.Print(f"{who}: {reason}; {self._opt(pc)}fallback jacobi: applying Jacobi (D^-1) instead",
+        if reason:
+            PETSc.Sys.Print(check_message(pc.getOptionsPrefix() or "", reason, self.fallback_active),
                             comm=pc.getComm())
-        elif reason:
-            PETSc.Sys.Print(f"{who}: WARNING: {reason}; Krylov methods will break down "
-                            f"(use {self._opt(pc)}fallback jacobi)", comm=pc.getComm())
 
     def apply(self, pc, x, y):
         """y = M x (or D^-1 x under an active Jacobi fallback)."""
@@ -231,27 +220,6 @@ class HTPPC:
         if self._guess is not None:
             ksp.setInitialGuessNonzero(self._guess)
             self._guess = None
-
-    def view(self, pc, viewer):
-        """ASCII description (:func:`petsc_htp.pcview.view`): what runs, the setup's own lines, checks, then the
-        inner solvers' own views, indented."""
-        if viewer.getType() == PETSc.Viewer.Type.ASCII:
-            view(self, viewer)
-
-    def getInnerPCs(self) -> dict:
-        """The inner PETSc solvers by role (leaf solver and coarse solver of the two-level method; the factor of a
-        small matrix; none for the paper's variant or before setup)."""
-        if self.setup is None or self.variant is None:
-            return {}
-        return self.variant.inner_pcs(self.setup)
-
-    def getLeafPC(self):
-        """The leaf solver's PC (the two-level method), else None."""
-        return self.getInnerPCs().get("leaf solver")
-
-    def getCoarsePC(self):
-        """The coarse solver's PC (the two-level method), else None."""
-        return self.getInnerPCs().get("coarse solver")
 
     def _free(self):
         """Free the analysis and its setups (PETSc objects included)."""

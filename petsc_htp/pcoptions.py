@@ -137,9 +137,11 @@ class HTPOptions:
         """The options a new analysis depends on."""
         return tuple(getattr(self, name) for name in PATTERN_FIELDS)
 
-    def help_lines(self, opt: str) -> list:
-        """``-help`` lines: option, type, current value, default, meaning."""
-        out = []
+    def help_text(self, opt: str) -> str:
+        """``-help``'s text for options that start with ``opt``: a heading, then per option its type, current
+        value, default and meaning."""
+        out = [f"HTPPC options (prefix {opt}; default: the two-level preconditioner, no network; "
+               "-htp_variant paper: the paper's Hierarchical Transformer Preconditioner) -----"]
         for f in fields(self):
             now, default = getattr(self, f.name), f.default
             if f.name == "checkpoint":
@@ -148,4 +150,4 @@ class HTPOptions:
                 now, default = now or "shipped", "shipped"
             kind = {str: "string", float: "real", int: "int", bool: "bool"}[type(f.default)]
             out.append(f"  {opt}{f.name} <{kind}> <now {now} : formerly {default}>: {HELP[f.name]} (HTPPC)")
-        return out
+        return "\n".join(out)

@@ -1,7 +1,10 @@
-"""HTPPC's ``-ksp_view``: what runs and why, the setup's own lines, then each inner PETSc solver's own view."""
+"""HTPPC's ``-ksp_view``: what runs and why, the setup's own lines, then each inner PETSc solver's own view; and
+:class:`Inspection`, the part of HTPPC a viewer or a program reads (its inner solvers)."""
 from __future__ import annotations
 
 import sys
+
+from petsc4py import PETSc
 
 from .twolevel.inner import view as view_inner
 
@@ -39,3 +42,29 @@ def view(ctx, viewer):
         viewer.printfASCII(f"  {line}\n")
     for role, pc in ctx.getInnerPCs().items():
         view_inner(pc, viewer, f"{role}:")
+
+
+class Inspection:
+    """What a PCPYTHON context of this package shows: ``-ksp_view`` and its inner PETSc solvers by role (HTPPC's
+    base; it reads the context's ``setup`` and ``variant``)."""
+
+    def view(self, pc, viewer):
+        """ASCII description (:func:`view`): what runs, the setup's own lines, checks, then the inner solvers'
+        own views, indented."""
+        if viewer.getType() == PETSc.Viewer.Type.ASCII:
+            view(self, viewer)
+
+    def getInnerPCs(self) -> dict:
+        """The inner PETSc solvers by role (leaf solver and coarse solver of the two-level method; the factor of a
+        small matrix; none for the paper's variant or before setup)."""
+        if self.setup is None or self.variant is None:
+            return {}
+        return self.variant.inner_pcs(self.setup)
+
+    def getLeafPC(self):
+        """The leaf solver's PC (the two-level method), else None."""
+        return self.getInnerPCs().get("leaf solver")
+
+    def getCoarsePC(self):
+        """The coarse solver's PC (the two-level method), else None."""
+        return self.getInnerPCs().get("coarse solver")
