@@ -1,0 +1,67 @@
+"""Run under mpiexec (2 ranks): a 2-D 5-point matrix whose rows come in a random order, split into contiguous
+blocks as PETSc does, so most rows are coupled to the other rank and many stand alone in their rank's block (leaves
+of such rows hold one piece, with a coarse column, per row). HTPPC converges, and W's pattern gives each row its own
+piece's column only: the coarse operator keeps the few entries per row of the matrix it coarsens (each row of W
+holding the whole leaf's columns made it about 80 per row and its LU take seconds); prints 'shuffled ok'."""
+import sys
+
+import petsc4py
+
+petsc4py.init(sys.argv)
+import numpy as np  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+import petsc_htp  # noqa: E402
+
+SIDE = 96
+
+
+def shuffled() -> sp.csr_matrix:
+    """The Dirichlet 5-point Laplacian on a SIDE^2 grid, rows and columns in a random order (the same on every
+    rank)."""
+    one = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (SIDE, SIDE))
+    A = (sp.kron(one, sp.identity(SIDE)) + sp.kron(sp.identity(SIDE), one)).tocsr()
+    p = np.random.default_rng(0).permutation(SIDE * SIDE)
+    return A[p][:, p].tocsr()
+
+
+def main():
+    comm = PETSc.COMM_WORLD
+    A = shuffled()
+    n = A.shape[0]
+    mat = PETSc.Mat().createAIJ((n, n), comm=comm)
+    start, end = mat.getOwnershipRange()
+    local = A[start:end]
+    mat.setPreallocationCSR((local.indptr, local.indices))
+    mat.setValuesCSR(local.indptr, local.indices, local.data)
+    mat.assemble()
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(mat)
+    ksp.setType("cg")
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.setTolerances(rtol=1e-8)
+    pc = ksp.getPC()
+    pc.setType("python")
+    ctx = petsc_htp.HTPPC()
+    pc.setPythonContext(ctx)
+    b, x = mat.createVecs()
+    b.setArray(np.random.default_rng(1).standard_normal(n)[start:end])
+    ksp.solve(b, x)
+    r = b.duplicate()
+    mat.mult(x, r)
+    r.aypx(-1.0, b)
+    relres = r.norm() / b.norm()
+    E = ctx.setup.ops.E
+    per_row = E.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"] / E.getSize()[0]
+    lone = "1-64 per leaf" in "\n".join(ctx.setup.describe())
+    PETSc.Sys.Print(f"iterations {ksp.getIterationNumber()} relres {relres:.2e} coarse rows {E.getSize()[0]} "
+                    f"entries per coarse row {per_row:.1f} lone-row leaves {lone}", comm=comm)
+    assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 40 and relres <= 1e-8
+    assert lone and per_row <= 10, per_row
+    PETSc.Sys.Print("shuffled ok", comm=comm)
+
+
+if __name__ == "__main__":
+    main()
