@@ -1,0 +1,131 @@
+#!/usr/bin/env python
+"""A plain PETSc program, as PETSc's KSP tutorial ex10: one matrix, one solve, any KSP and PC, any number of ranks.
+
+    mpiexec -n 2 python examples/matrix_file.py -f A.petsc -ksp_type cg -ksp_rtol 1e-8 \\
+        -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC
+    mpiexec -n 2 python examples/matrix_file.py -case fem_tri -n 65536 -options_file options/cg_gamg.opts
+
+``-f FILE`` loads a matrix (and, where the file holds one after it, a right-hand side) in PETSc's binary format
+with MatLoad; ``-case NAME -n N`` takes one of the benchmark's foreign-study matrices instead
+(:mod:`petsc_htp.bench.foreigncases`: ``dmda2d``, ``fem_tri``, ...; its own right-hand side), in its own row order:
+the P1 meshes number their nodes at random, so a contiguous split hands each rank rows from all over the mesh. Each
+rank owns a contiguous block of rows, as MatLoad gives them; ``-write FILE`` saves the matrix and right-hand side
+for other programs. A matrix whose row sums vanish gets the constant null space attached. ``-warmup`` solves the
+same case at 4096 rows first (``-case`` only), so that one-time costs (imports, first calls) stay out of the timed
+solve. Prints the iterations, PETSc's reason, the setup (KSPSetUp) and solve milliseconds, the true relative
+residual and the peak resident memory of the largest rank; exits non-zero when the solve did not converge.
+"""
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import petsc4py
+
+petsc4py.init(sys.argv)
+from mpi4py import MPI  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+
+def generated(case, n, comm):
+    """The foreign-study matrix ``case`` of about ``n`` rows and its right-hand side, each rank setting its own
+    contiguous block of rows."""
+    from petsc_htp.bench.foreigncases import CASES
+
+    if case not in CASES:
+        raise SystemExit(f"-case must be one of {', '.join(CASES)}, got {case!r}")
+    A, b = CASES[case](n, 0)
+    A = A.tocsr()
+    mat = PETSc.Mat().createAIJ(A.shape, comm=comm)
+    start, end = mat.getOwnershipRange()
+    rows = A[start:end]
+    mat.setPreallocationCSR((rows.indptr.astype(PETSc.IntType), rows.indices.astype(PETSc.IntType)))
+    mat.setValuesCSR(rows.indptr.astype(PETSc.IntType), rows.indices.astype(PETSc.IntType), rows.data)
+    mat.assemble()
+    rhs = mat.createVecLeft()
+    rhs.setArray(np.asarray(b, dtype=float)[start:end])
+    return mat, rhs
+
+
+def loaded(path, comm):
+    """The matrix in the binary file ``path`` (MatLoad) and the vector after it, else a vector of ones."""
+    viewer = PETSc.Viewer().createBinary(path, "r", comm=comm)
+    mat = PETSc.Mat().create(comm)
+    mat.setType(PETSc.Mat.Type.AIJ)
+    mat.load(viewer)
+    rhs = mat.createVecLeft()
+    try:
+        rhs.load(viewer)
+    except PETSc.Error:
+        rhs.set(1.0)
+    viewer.destroy()
+    return mat, rhs
+
+
+def with_null_space(mat):
+    """Attach the constant null space where every row sum vanishes (a Neumann matrix); whether it did."""
+    ones = mat.createVecRight()
+    ones.set(1.0)
+    sums = mat.createVecLeft()
+    mat.mult(ones, sums)
+    diag = mat.getDiagonal()
+    singular = sums.norm(PETSc.NormType.INFINITY) <= 1e-10 * diag.norm(PETSc.NormType.INFINITY)
+    if singular:
+        mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=mat.getComm()))
+    for vec in (ones, sums, diag):
+        vec.destroy()
+    return singular
+
+
+def solve(mat, rhs):
+    """One solve from zero under the options database's KSP; (iterations, reason, setup ms, solve ms, true relative
+    residual)."""
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    x = rhs.duplicate()
+    ksp = PETSc.KSP().create(mat.getComm())
+    ksp.setOperators(mat, mat)
+    ksp.setFromOptions()
+    t0 = time.perf_counter()
+    ksp.setUp()
+    t1 = time.perf_counter()
+    ksp.solve(rhs, x)
+    t2 = time.perf_counter()
+    r = rhs.duplicate()
+    mat.mult(x, r)
+    r.aypx(-1.0, rhs)
+    out = (ksp.getIterationNumber(), ksp.getConvergedReason(), 1e3 * (t1 - t0), 1e3 * (t2 - t1), r.norm() / rhs.norm())
+    for obj in (ksp, x, r):
+        obj.destroy()
+    return out
+
+
+def main():
+    db, comm = PETSc.Options(), PETSc.COMM_WORLD
+    path, case = db.getString("f", ""), db.getString("case", "")
+    if bool(path) == bool(case):
+        raise SystemExit("give a matrix file (-f FILE) or a foreign-study case (-case NAME -n N), one of them")
+    if case and db.getBool("warmup", False):
+        solve(*generated(case, 4096, comm))
+    mat, rhs = loaded(path, comm) if path else generated(case, db.getInt("n", 65536), comm)
+    out = db.getString("write", "")
+    if out:
+        viewer = PETSc.Viewer().createBinary(out, "w", comm=comm)
+        mat.view(viewer)
+        rhs.view(viewer)
+        viewer.destroy()
+    null = with_null_space(mat)
+    its, reason, setup, solve_ms, relres = solve(mat, rhs)
+    peak = comm.tompi4py().allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024.0
+    note = "; constant null space attached" if null else ""
+    PETSc.Sys.Print(f"rows: {mat.getSize()[0]} on {comm.getSize()} rank(s){note}\n"
+                    f"iterations: {its}\nconverged reason: {reason}\nsetup ms (KSPSetUp): {setup:.1f}\n"
+                    f"solve ms: {solve_ms:.1f}\ntrue relative residual ||b - A x|| / ||b||: {relres:.3e}\n"
+                    f"peak RSS of the largest rank, MiB: {peak:.0f}")
+    return 0 if reason > 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
