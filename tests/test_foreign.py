@@ -394,6 +394,27 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
         assert f"second pass {'standard' if metis else 'pairs'}" in proc.stdout, proc.stdout
 
 
+def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
+    """examples/matrix_file.py, PETSc's ex10 pattern: a foreign-study case (P1 triangles, nodes at random) written to a
+    PETSc binary file on two ranks and loaded again with MatLoad; HTPPC by options alone solves both the same way, and
+    the no-flux case gets the constant null space attached."""
+    path = tmp_path / "tri.petsc"
+    script = EXAMPLE.parent / "matrix_file.py"
+    runs = [_mpirun(2, script, "-case", "fem_tri", "-n", "6000", "-write", str(path), *HTPPC_FLAGS),
+            _mpirun(2, script, "-f", str(path), *HTPPC_FLAGS)]
+    found = []
+    for proc in runs:
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "on 2 rank(s)" in proc.stdout and "2 MPI process" in proc.stdout
+        its = int(proc.stdout.split("iterations:")[1].split()[0])
+        relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+        assert its <= 40 and relres <= 1.01e-8, proc.stdout
+        found.append(its)
+    assert found[0] == found[1]
+    proc = _mpirun(2, script, "-case", "neumann", "-n", "4096", *HTPPC_FLAGS)
+    assert proc.returncode == 0 and "constant null space attached" in proc.stdout, proc.stdout + proc.stderr
+
+
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_large_2d_coarse_operator_on_two_ranks_gets_distributed_v_cycles_in_the_deflated_form(ranks):
     """In 2-D on several ranks a coarse operator above sizing.COARSE_REDUNDANT_MAX rows (440^2: about 20 000) is
