@@ -1,13 +1,16 @@
 #!/usr/bin/env python
 """A plain PETSc program: 2-D linear elasticity (PyAMG's gallery: bilinear elements, 2 unknowns per node, one
-side clamped), solved twice on one persistent KSP, the second time with new values of the same pattern.
+side clamped) or with ``-dim 3`` 3-D (trilinear hexahedra, 3 unknowns per node, one face clamped:
+:func:`petsc_htp.scenes.meshes.q1_elasticity`), solved twice on one persistent KSP, the second time with new
+values of the same pattern.
 
     python examples/elasticity.py -side 200 -near rbm -ksp_type cg -ksp_rtol 1e-8 \\
         -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC
     python examples/elasticity.py -side 200 -near rbm -options_file options/cg_gamg.opts
 
-``-side`` nodes per side (110), ``-mat_kind aij|baij|sbaij`` the Mat's type (SBAIJ holds the upper triangle),
-``-near none|bs|rbm``: an AIJ Mat with no block size, the block size 2 alone, or the block size with the
+``-side`` nodes per side in 2-D, elements per edge in 3-D (110), ``-mat_kind aij|baij|sbaij`` the Mat's type (SBAIJ
+holds the upper triangle), ``-near none|bs|rbm``: an AIJ Mat with no block size, the block size (2, 3) alone, or the
+block size with the
 rigid-body modes attached as the near null space (``MatSetNearNullSpace``, as GAMG reads them). ``-warmup`` solves
 a small problem first (one-time costs out of the timed solves). Prints one line per solve (iterations, PETSc's
 reason, true relative residual, HTPPC's analyses and numeric steps when it is the PC, KSPSetUp and KSPSolve ms);
@@ -15,6 +18,7 @@ exits non-zero when a solve did not converge.
 """
 import sys
 import time
+from pathlib import Path
 
 import petsc4py
 
@@ -22,6 +26,9 @@ petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 import numpy as np  # noqa: E402
 from pyamg.gallery import linear_elasticity  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from petsc_htp.scenes.meshes import q1_elasticity  # noqa: E402
 
 
 def assemble(A, kind, bs, comm):
@@ -46,7 +53,7 @@ def assemble(A, kind, bs, comm):
 
 
 def rigid_body_modes(mat, B):
-    """PyAMG's rigid-body modes ``B`` (n, 3) as ``mat``'s near null space (normalised vectors)."""
+    """The rigid-body modes ``B`` (n, 3 in 2-D, 6 in 3-D) as ``mat``'s near null space (normalised vectors)."""
     vecs = []
     for j in range(B.shape[1]):
         v = mat.createVecLeft()
@@ -57,11 +64,11 @@ def rigid_body_modes(mat, B):
     mat.setNearNullSpace(PETSc.NullSpace().create(constant=False, vectors=vecs, comm=mat.getComm()))
 
 
-def run(side, kind, near, comm, quiet=False):
+def run(side, kind, near, comm, dim=2, quiet=False):
     """Assemble, solve, change the values, solve again; False when a solve did not converge."""
-    A, B = linear_elasticity((side, side), format="csr")
+    A, B = linear_elasticity((side, side), format="csr") if dim == 2 else q1_elasticity(side)
     A.sort_indices()
-    mat = assemble(A, kind, 1 if near == "none" else 2, comm)
+    mat = assemble(A, kind, 1 if near == "none" else dim, comm)
     if near == "rbm":
         rigid_body_modes(mat, B)
     ksp = PETSc.KSP().create(comm)
@@ -97,12 +104,12 @@ def run(side, kind, near, comm, quiet=False):
 
 def main():
     db = PETSc.Options()
-    kind, near = db.getString("mat_kind", "aij"), db.getString("near", "bs")
-    if kind not in ("aij", "baij", "sbaij") or near not in ("none", "bs", "rbm"):
-        raise SystemExit(f"-mat_kind aij|baij|sbaij and -near none|bs|rbm, got {kind!r} and {near!r}")
+    kind, near, dim = db.getString("mat_kind", "aij"), db.getString("near", "bs"), db.getInt("dim", 2)
+    if kind not in ("aij", "baij", "sbaij") or near not in ("none", "bs", "rbm") or dim not in (2, 3):
+        raise SystemExit(f"-mat_kind aij|baij|sbaij, -near none|bs|rbm and -dim 2|3, got {kind!r}, {near!r} and {dim}")
     if db.getBool("warmup", False):
-        run(12, kind, near, PETSc.COMM_WORLD, quiet=True)
-    return 0 if run(db.getInt("side", 110), kind, near, PETSc.COMM_WORLD) else 1
+        run(12 if dim == 2 else 4, kind, near, PETSc.COMM_WORLD, dim, quiet=True)
+    return 0 if run(db.getInt("side", 110), kind, near, PETSc.COMM_WORLD, dim) else 1
 
 
 if __name__ == "__main__":

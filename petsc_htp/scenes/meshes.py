@@ -92,3 +92,56 @@ def q1_laplacian(n, frame=0) -> tuple:
     A.sort_indices()
     m = A.shape[0]
     return A, np.full(m, 1.0 / m)
+
+
+def _q1_elasticity_element(E=1.0, nu=0.3) -> np.ndarray:
+    """The trilinear hexahedron's 24 x 24 isotropic linear-elasticity stiffness on a unit cube (Young's modulus E,
+    Poisson's ratio nu; 2 x 2 x 2 Gauss points), unknowns (u_x, u_y, u_z) node after node, nodes in the order
+    (x, y, z) bits as :func:`_q1_element`."""
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    D = np.zeros((6, 6))
+    D[:3, :3] = lam
+    D[np.arange(6), np.arange(6)] += np.r_[2 * mu, 2 * mu, 2 * mu, mu, mu, mu]
+    corner = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)])
+    sign = 2 * corner - 1
+    pairs = ((3, 0, 1), (4, 1, 2), (5, 0, 2))                  # shear rows: (row, component a, component b)
+    K = np.zeros((24, 24))
+    for point in (np.array(q) for q in np.ndindex(2, 2, 2)):
+        xi = (1 + (2 * point - 1) / np.sqrt(3)) / 2               # the Gauss point in [0, 1]^3
+        f = np.where(corner == 1, xi, 1 - xi)                     # each node's 1-D factors there
+        grad = sign * np.stack([f[:, 1] * f[:, 2], f[:, 0] * f[:, 2], f[:, 0] * f[:, 1]], 1)
+        B = np.zeros((6, 24))
+        for a in range(3):
+            B[a, a::3] = grad[:, a]
+        for row, a, b in pairs:
+            B[row, a::3], B[row, b::3] = grad[:, b], grad[:, a]
+        K += B.T @ D @ B / 8
+    return K
+
+
+def q1_elasticity(elements) -> tuple:
+    """(A, B): 3-D linear elasticity on a cube of ``elements``^3 trilinear hexahedra (E = 1, nu = 0.3), the face x = 0
+    clamped (its nodes eliminated), three unknowns per node node after node (block size 3; 81-entry rows inside),
+    and its six rigid-body modes B (n, 6) (the translations, then the rotations), the near null space GAMG reads."""
+    side = elements + 1
+    ex, ey, ez = np.meshgrid(*(np.arange(elements),) * 3, indexing="ij")
+    corner = (ex * side * side + ey * side + ez).ravel()
+    bits = np.array([(i >> 2) * side * side + ((i >> 1) & 1) * side + (i & 1) for i in range(8)])
+    dofs = (3 * (corner[:, None] + bits[None, :])[:, :, None] + np.arange(3)).reshape(corner.size, 24)
+    K = _q1_elasticity_element()
+    A = sp.csr_matrix((np.tile(K.ravel(), corner.size), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, 24).ravel())),
+                      shape=(3 * side ** 3,) * 2)
+    A.sum_duplicates()
+    x, y, z = (c.ravel().astype(np.float64) for c in np.meshgrid(*(np.arange(side),) * 3, indexing="ij"))
+    free = np.flatnonzero(x > 0)
+    keep = (3 * free[:, None] + np.arange(3)).ravel()
+    A = A[keep][:, keep].tocsr()
+    A.sort_indices()
+    x, y, z = x[free], y[free], z[free]
+    B = np.zeros((keep.size, 6))
+    for a in range(3):
+        B[a::3, a] = 1.0
+    B[0::3, 3], B[1::3, 3] = -y, x
+    B[1::3, 4], B[2::3, 4] = -z, y
+    B[0::3, 5], B[2::3, 5] = z, -x
+    return A, B

@@ -91,7 +91,7 @@ def aggregation(dim, near, per_row, coarse="auto", positive=1.0) -> str:
     with two coarse V-cycles (:func:`coarse_exact`) the foreign study's DMDA case took 25-29 against 33-41 CG
     iterations from 32^3 to 128^3 and 0.88-1.05 times the time (10.5 against 11.9 s at 128^3), and the P1 tets at
     64 000 rows 40 against 47 iterations and 461 against 468-500 ms (results/foreign-20261126c and -d, README)."""
-    paired = not near and coarse in ("auto", "const") and (dim == 3 or per_row <= RICH_ROW or positive <= POSITIVE_MAX)
+    paired = coarse in ("auto", "const") and (dim == 3 or near or per_row <= RICH_ROW or positive <= POSITIVE_MAX)
     return "pairs" if paired else "standard"
 
 
