@@ -644,8 +644,11 @@ def test_coarse_solver_by_the_problem():
     assert (sizing.coarse_solver(3, paired), sizing.coarse_solver(3, paired + 1)) == ("lu", "gamg") and paired < limit
     assert sizing.coarse_options(3, False, "gamg", "aggregation")["pc_mg_multiplicative_cycles"] == "2"
     assert "pc_mg_multiplicative_cycles" not in sizing.coarse_options(3, False, "gamg", "aggregation", near=6)
-    assert sizing.aggregation(3, 0, 15.0) == "pairs" and sizing.aggregation(3, 6, 7.0) == "standard"
-    assert sizing.aggregation(2, 0, 9.0) == "standard" and sizing.aggregation(3, 0, 7.0, "eig") == "standard"
+    assert sizing.aggregation(3, 0, 15.0) == "pairs" and sizing.aggregation(3, 2, 81.0) == "pairs"
+    assert sizing.aggregation(3, 6, 81.0, attached=True) == "standard" == sizing.aggregation(3, 2, 81.0, "eig")
+    assert sizing.aggregation(2, 3, 18.0, attached=True) == "pairs"
+    assert sizing.aggregation(2, 3, 18.0) == "pairs" and sizing.aggregation(2, 0, 9.0) == "standard"
+    assert sizing.aggregation(3, 0, 7.0, "eig") == "standard" and sizing.aggregation(2, 3, 18.0, "eig") == "standard"
     assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"
     assert sizing.coarse_options(3, True, "gamg")["pc_type"] == "gamg"
     order = "pc_factor_mat_ordering_type"

@@ -36,6 +36,11 @@ def count(mat) -> int:
     return max(mat.getBlockSize() - 1, 0)
 
 
+def attached(mat) -> bool:
+    """Whether ``mat`` carries a near null space of its own (not only a block size)."""
+    return bool(mat.getNearNullSpace().handle)
+
+
 def describe(mat) -> str:
     """Where :func:`vectors` takes its vectors from, for ``-ksp_view``."""
     near = mat.getNearNullSpace()

@@ -67,7 +67,7 @@ class Structure:
         self.dim = int(coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto"),
                                               ("aggregation", cfg.aggregation == "auto")) if unset]
-        self.fixed = nearnull.count(mat)
+        self.fixed, self.attached = nearnull.count(mat), nearnull.attached(mat)
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
@@ -99,7 +99,8 @@ class Structure:
         """``cfg`` with its problem-sized fields (leaf 0, coarse and aggregation auto) set for this matrix, ``bare``
         (no coordinates: 'auto' ordering makes aggregation leaves) and its near null vectors (:mod:`.sizing`)."""
         second = (cfg.aggregation if cfg.aggregation != "auto"
-                  else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse, self.positive))
+                  else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse, self.positive,
+                                          self.attached))
         paired = second == "pairs" and (cfg.ordering == "aggregation" or (cfg.ordering == "auto" and bare))
         coarse = sizing.coarse_space(self.dim, self.fixed, paired) if cfg.coarse == "auto" else cfg.coarse
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
