@@ -28,8 +28,9 @@ HELP = {
                 "rcm, natural, graph (twolevel: Morton leaves of coordinates found by breadth-first search in A's "
                 "graph, METIS when that graph is not 2-D-like) or metis (twolevel)",
     "aggregation": "twolevel aggregation leaves only: the passes after the first, auto (pairs, with the const "
-                   "space, in 3-D and in 2-D where rows hold at most 5.5 entries on average, the Mat has no block "
-                   "size or near null space and -htp_coarse is auto or const; else standard), standard (aggregates of "
+                   "space, where -htp_coarse is auto or const: in 3-D unless a near null space is attached, and in "
+                   "2-D where rows hold at most 5.5 entries on average, at most 5% of the couplings are positive, or "
+                   "the Mat has a block size or near null space; else standard), standard (aggregates of "
                    "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
