@@ -16,7 +16,6 @@ iterations, PETSc's reason, the setup (KSPSetUp: the preconditioner's analysis a
 solve milliseconds, and the true relative residual; exits non-zero when the solve did not converge.
 """
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from petsc_htp.onesolve import solve_once  # noqa: E402
 from petsc_htp.scenes.gallery import balls, face_weights, inclusions  # noqa: E402
 
 
@@ -105,20 +105,8 @@ def solve(n, contrast, seed, dim=2, scale=0.0):
         A.diagonalScale(d, d)
         b.pointwiseMult(b, d)
         d.destroy()
-    x = b.duplicate()
-    ksp = PETSc.KSP().create()
-    ksp.setOperators(A, A)
-    ksp.setFromOptions()
-    t0 = time.perf_counter()
-    ksp.setUp()
-    t1 = time.perf_counter()
-    ksp.solve(b, x)
-    t2 = time.perf_counter()
-    r = b.duplicate()
-    A.mult(x, r)
-    r.aypx(-1.0, b)
-    out = (ksp.getIterationNumber(), ksp.getConvergedReason(), 1e3 * (t1 - t0), 1e3 * (t2 - t1), r.norm() / b.norm())
-    for obj in (ksp, A, b, x, r, da):
+    out = solve_once(A, b)
+    for obj in (A, b, da):
         obj.destroy()
     return out
 

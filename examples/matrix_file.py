@@ -17,7 +17,6 @@ residual and the peak resident memory of the largest rank; exits non-zero when t
 """
 import resource
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,8 @@ from mpi4py import MPI  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from petsc_htp.onesolve import solve_once  # noqa: E402
+from petsc_htp.petscmat import local_csr, preallocated_aij  # noqa: E402
 
 
 def generated(case, n, comm):
@@ -39,11 +40,9 @@ def generated(case, n, comm):
         raise SystemExit(f"-case must be one of {', '.join(CASES)}, got {case!r}")
     A, b = CASES[case](n, 0)
     A = A.tocsr()
-    mat = PETSc.Mat().createAIJ(A.shape, comm=comm)
-    start, end = mat.getOwnershipRange()
-    rows = A[start:end]
-    mat.setPreallocationCSR((rows.indptr.astype(PETSc.IntType), rows.indices.astype(PETSc.IntType)))
-    mat.setValuesCSR(rows.indptr.astype(PETSc.IntType), rows.indices.astype(PETSc.IntType), rows.data)
+    A.sort_indices()
+    mat, start, end = preallocated_aij(A, comm)
+    mat.setValuesCSR(*local_csr(A, start, end))
     mat.assemble()
     rhs = mat.createVecLeft()
     rhs.setArray(np.asarray(b, dtype=float)[start:end])
@@ -80,35 +79,13 @@ def with_null_space(mat):
     return singular
 
 
-def solve(mat, rhs):
-    """One solve from zero under the options database's KSP; (iterations, reason, setup ms, solve ms, true relative
-    residual)."""
-    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    x = rhs.duplicate()
-    ksp = PETSc.KSP().create(mat.getComm())
-    ksp.setOperators(mat, mat)
-    ksp.setFromOptions()
-    t0 = time.perf_counter()
-    ksp.setUp()
-    t1 = time.perf_counter()
-    ksp.solve(rhs, x)
-    t2 = time.perf_counter()
-    r = rhs.duplicate()
-    mat.mult(x, r)
-    r.aypx(-1.0, rhs)
-    out = (ksp.getIterationNumber(), ksp.getConvergedReason(), 1e3 * (t1 - t0), 1e3 * (t2 - t1), r.norm() / rhs.norm())
-    for obj in (ksp, x, r):
-        obj.destroy()
-    return out
-
-
 def main():
     db, comm = PETSc.Options(), PETSc.COMM_WORLD
     path, case = db.getString("f", ""), db.getString("case", "")
     if bool(path) == bool(case):
         raise SystemExit("give a matrix file (-f FILE) or a foreign-study case (-case NAME -n N), one of them")
     if case and db.getBool("warmup", False):
-        solve(*generated(case, 4096, comm))
+        solve_once(*generated(case, 4096, comm))
     mat, rhs = loaded(path, comm) if path else generated(case, db.getInt("n", 65536), comm)
     out = db.getString("write", "")
     if out:
@@ -117,7 +94,8 @@ def main():
         rhs.view(viewer)
         viewer.destroy()
     null = with_null_space(mat)
-    its, reason, setup, solve_ms, relres = solve(mat, rhs)
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    its, reason, setup, solve_ms, relres = solve_once(mat, rhs)
     peak = comm.tompi4py().allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024.0
     note = "; constant null space attached" if null else ""
     PETSc.Sys.Print(f"rows: {mat.getSize()[0]} on {comm.getSize()} rank(s){note}\n"
