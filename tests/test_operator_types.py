@@ -58,7 +58,8 @@ def test_block_size_and_near_null_space_shape_the_coarse_space():
         rbm, text = run_case(ranks, "-mat_kind", "aij", "-near", "rbm", "-side", 110, "-ksp_view")
         assert rbm[0][0] < bs[0][0] <= 50 < 3 * 50 < none[0][0]
         assert rbm[0][0] <= 32
-    assert "from 3 near null vector(s) per leaf beside the piece constants (the Mat's near null space)" in text
+    assert "3 per leaf, from 3 near null vector(s) per leaf spanning the piece constants (the Mat's near null space)" \
+        in text                             # the translations span each piece's constant: no column of its own
     _, text = run_case(1, "-mat_kind", "aij", "-near", "bs", "-side", 110, "-ksp_view")
     assert ("from 1 near null vector(s) per leaf beside the piece constants (block size 2: each component's "
             "constant)") in text
@@ -76,7 +77,7 @@ def test_3d_elasticity_pairs_its_node_aggregates():
         assert all(reason > 0 and relres <= 1.01e-8 for _, reason, relres, _, _ in bs + rbm)
         assert rbm[0][0] < bs[0][0] <= 55 and rbm[0][0] <= 40, (bs, rbm)
         assert "second pass pairs" in paired and "second pass standard" in text, text
-        assert "from 6 near null vector(s) per leaf" in text, text
+        assert "6 per leaf, from 6 near null vector(s) per leaf spanning the piece constants" in text, text
 
 
 def test_near_null_vectors_lie_in_the_coarse_space():
@@ -105,6 +106,24 @@ def test_near_null_vectors_lie_in_the_coarse_space():
     assert np.linalg.norm(B - Wd @ (Wd.T @ B)) <= 1e-10 * np.linalg.norm(B)
     pc.destroy()
     mat.destroy()
+
+
+def test_rigid_body_modes_span_the_constant_and_a_block_size_alone_does_not():
+    """nearnull.spans_constant: the rigid-body modes' translations sum to the constant (the piece constants then get
+    no column of their own); a block size alone, or vectors that miss the constant, do not."""
+    from petsc_htp.twolevel import nearnull
+
+    A, B = linear_elasticity((12, 12), format="csr")
+    A = sp.csr_matrix(A)
+    for vectors, spans in ((B, True), (B[:, 2:], False), (None, False)):
+        mat = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+        mat.setBlockSize(2)
+        if vectors is not None:
+            vecs = [PETSc.Vec().createWithArray(vectors[:, j].copy(), comm=PETSc.COMM_SELF)
+                    for j in range(vectors.shape[1])]
+            mat.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF))
+        assert nearnull.spans_constant(mat) == spans
+        mat.destroy()
 
 
 def test_near_null_vectors_keep_the_coarse_lu_and_take_the_const_space():

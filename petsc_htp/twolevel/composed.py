@@ -209,8 +209,9 @@ class TwoLevelPC:
                 + (f", {lone} of them decoupled rows (no coarse vector)" if lone else "")
                 + f"; {self.leafsolver.describe()}",
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
-                + (f", from {st.fixed} near null vector(s) per leaf beside the piece constants "
-                   f"({nearnull.describe(self.mat)})" if st.fixed else "")
+                + (f", from {st.fixed} near null vector(s) per leaf "
+                   + ("spanning the piece constants" if st.covered else "beside the piece constants")
+                   + f" ({nearnull.describe(self.mat)})" if st.fixed else "")
                 + (f" (up to {st.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if st.extra else "")
                 + f"; global size {st.m}, {sp.null_components} null component(s) left out"

@@ -36,6 +36,17 @@ def count(mat) -> int:
     return max(mat.getBlockSize() - 1, 0)
 
 
+def spans_constant(mat, tol=1e-8) -> bool:
+    """Whether ``mat``'s attached near null vectors span the constant on this rank's rows (least squares residual at
+    most ``tol`` times the constant's norm): the rigid-body modes do, their translations summing to it."""
+    Z = vectors(mat) if attached(mat) else None
+    if Z is None or Z.shape[0] == 0:
+        return False
+    ones = np.ones(Z.shape[0])
+    coef = np.linalg.lstsq(Z, ones, rcond=None)[0]
+    return bool(np.linalg.norm(Z @ coef - ones) <= tol * np.sqrt(Z.shape[0]))
+
+
 def attached(mat) -> bool:
     """Whether ``mat`` carries a near null space of its own (not only a block size)."""
     return bool(mat.getNearNullSpace().handle)

@@ -68,6 +68,7 @@ class Structure:
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto"),
                                               ("aggregation", cfg.aggregation == "auto")) if unset]
         self.fixed, self.attached = nearnull.count(mat), nearnull.attached(mat)
+        self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
@@ -170,7 +171,9 @@ class Structure:
         self.isolated = coll.max_array(self.isolated.astype(np.int64)) > 0
 
     def _columns(self, net_rank, rows):
-        """Coarse columns of every leaf (near null vectors, modes, extras, then one per piece but decoupled ones),
+        """Coarse columns of every leaf (near null vectors, modes, extras, then one per piece but decoupled ones, and
+        none for the one piece of a leaf where the attached near null vectors span the constant, :attr:`covered`:
+        2-D elasticity's coarse LU in blocks of 3 instead of 4 with one column left empty),
         their global numbers (leaf after leaf, the leaves in METIS's order where :func:`.sizing.metis_ordered`) and
         W's pattern: a row holds its leaf's lead columns and its own piece's, not the other pieces' (a leaf of 64
         rows coupled only to other ranks, 64 pieces, made W's block and E's rows dense: a 2-D coarse LU of 7 597 rows
@@ -181,11 +184,13 @@ class Structure:
         self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
         self.seeded = self.q + self.extra                              # vectors from S's inverse-iteration step
         self.lead = lead = self.fixed + self.seeded
-        self.has_col = ~lay.decoupled
+        alone = np.bincount(pc.leaf, minlength=lv.n_leaves) == 1          # leaves of one piece
+        self.has_col = ~lay.decoupled & ~(self.covered & alone[pc.leaf])  # ... whose constant the lead columns span
         before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
         self.piece_index = index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)   # among its leaf's
         count = np.bincount(pc.leaf[self.has_col], minlength=lv.n_leaves)
-        self.ncols = np.where(count > 0, lead + count, 0)
+        coupled = np.bincount(pc.leaf[~lay.decoupled], minlength=lv.n_leaves) > 0
+        self.ncols = np.where(coupled, lead + count, 0)
         live = self.ncols[self.ncols > 0]
         sizes = self.coll.max_array(np.array([live.max(initial=0), -live.min(initial=2 ** 40)]))
         self.col_block = int(sizes[0]) if sizes[0] == -sizes[1] else 1     # W's columns come in equal blocks per leaf
