@@ -23,7 +23,7 @@ import math
 
 from petsc4py import PETSc
 
-from . import inner, sizing
+from . import inner, nearnull, sizing
 
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
@@ -107,15 +107,28 @@ class CoarseSolve:
             self.refine = min(REFINE_MAX, math.ceil(math.log(REFINE_TARGET) / math.log(e)) - 1)
 
     def _near_null(self, ops):
-        """E's near null space for GAMG: W^T 1, the coarse coefficients of the constant (W's columns are orthonormal
-        per leaf), in place of GAMG's default, the constant vector."""
-        one, z = ops.W.createVecLeft(), ops.E.createVecLeft()
-        one.set(1.0)
-        ops.W.multTranspose(one, z)
-        z.normalize()
-        nsp = PETSc.NullSpace().create(vectors=[z], comm=ops.E.getComm())
+        """E's near null space for GAMG: W^T 1 and W^T z for every near null vector z of A (:mod:`.nearnull`), made
+        orthonormal: the coarse coefficients of what W holds exactly, in place of GAMG's default, the constant."""
+        near = nearnull.vectors(ops.mat)
+        columns = [None] + ([] if near is None else list(near.T))          # None: the constant
+        fine, vecs = ops.W.createVecLeft(), []
+        for column in columns:
+            fine.getArray()[:] = 1.0 if column is None else column
+            z = ops.E.createVecLeft()
+            ops.W.multTranspose(fine, z)
+            for q in vecs:                                               # Gram-Schmidt, twice
+                z.axpy(-q.dot(z), q)
+            for q in vecs:
+                z.axpy(-q.dot(z), q)
+            norm = z.norm()
+            if norm > 1e-8 * (1.0 + fine.norm()):
+                z.scale(1.0 / norm)
+                vecs.append(z)
+            else:
+                z.destroy()
+        nsp = PETSc.NullSpace().create(vectors=vecs, comm=ops.E.getComm())
         ops.E.setNearNullSpace(nsp)
-        for obj in (one, z, nsp):
+        for obj in [fine, nsp] + vecs:
             obj.destroy()
 
     def apply(self, g, c):
