@@ -85,7 +85,12 @@ def main():
     if bool(path) == bool(case):
         raise SystemExit("give a matrix file (-f FILE) or a foreign-study case (-case NAME -n N), one of them")
     if case and db.getBool("warmup", False):
-        solve_once(*generated(case, 4096, comm))
+        warm = generated(case, 4096, comm)
+        with_null_space(warm[0])
+        warm[0].setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        solve_once(*warm)
+        for obj in warm:
+            obj.destroy()
     mat, rhs = loaded(path, comm) if path else generated(case, db.getInt("n", 65536), comm)
     out = db.getString("write", "")
     if out:
@@ -94,7 +99,8 @@ def main():
         rhs.view(viewer)
         viewer.destroy()
     null = with_null_space(mat)
-    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    if case:                                       # a file's matrix is taken as it is (HTPPC checks symmetry itself)
+        mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     its, reason, setup, solve_ms, relres = solve_once(mat, rhs)
     peak = comm.tompi4py().allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024.0
     note = "; constant null space attached" if null else ""

@@ -140,6 +140,38 @@ def test_rigid_body_modes_span_the_constant_and_a_block_size_alone_does_not():
         mat.destroy()
 
 
+def test_a_singular_matrix_whose_near_null_space_spans_the_constant_keeps_a_nonsingular_coarse_operator():
+    """A Neumann Laplacian (row sums zero) with the constant attached as its near null space, as a GAMG user would:
+    the one-piece leaves take no column of their own constant, but each component's first piece keeps one, which the
+    null component then drops (without it nothing was left out and E was singular)."""
+    m = 30
+    one_d = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (m, m)).tolil()
+    one_d[0, 0] = one_d[-1, -1] = 1.0
+    A = (sp.kron(one_d, sp.identity(m)) + sp.kron(sp.identity(m), one_d)).tocsr()
+    mat = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    ones = PETSc.Vec().createWithArray(np.full(m * m, 1.0 / m), comm=PETSc.COMM_SELF)
+    mat.setNearNullSpace(PETSc.NullSpace().create(vectors=[ones], comm=PETSc.COMM_SELF))
+    db = PETSc.Options("sn_")
+    for key, value in (("ksp_type", "cg"), ("ksp_norm_type", "unpreconditioned"), ("ksp_rtol", "1e-8"),
+                       ("pc_type", "python"), ("pc_python_type", "petsc_htp.HTPPC"), ("htp_direct_max", "0"),
+                       ("htp_ordering", "aggregation"), ("htp_aggregation", "standard")):
+        db.setValue(key, value)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix("sn_")
+    ksp.setOperators(mat)
+    ksp.setFromOptions()
+    b = PETSc.Vec().createWithArray(np.random.default_rng(0).standard_normal(m * m), comm=PETSc.COMM_SELF)
+    b.shift(-b.sum() / (m * m))
+    x = b.duplicate()
+    ksp.solve(b, x)
+    setup = ksp.getPC().getPythonContext().setup
+    assert setup.st.covered and setup.space.dropped.size == 1          # the null component's column, left out
+    assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 40
+    for obj in (ksp, mat, ones, b, x):
+        obj.destroy()
+
+
 def test_near_null_vectors_keep_the_coarse_lu_and_take_the_const_space():
     """With near null vectors of its own an operator keeps the coarse LU on several ranks (GAMG's V-cycle on the
     coarse operator does not know its near null space) and takes the piece constants besides them."""

@@ -116,12 +116,11 @@ class CoarseSolve:
             fine.getArray()[:] = 1.0 if column is None else column
             z = ops.E.createVecLeft()
             ops.W.multTranspose(fine, z)
-            for q in vecs:                                               # Gram-Schmidt, twice
-                z.axpy(-q.dot(z), q)
-            for q in vecs:
+            size = z.norm()
+            for q in vecs + vecs:                                        # Gram-Schmidt, twice
                 z.axpy(-q.dot(z), q)
             norm = z.norm()
-            if norm > 1e-8 * (1.0 + fine.norm()):
+            if norm > 1e-8 * size:                                       # not (nearly) in the span of the others
                 z.scale(1.0 / norm)
                 vecs.append(z)
             else:

@@ -173,7 +173,8 @@ class Structure:
     def _columns(self, net_rank, rows):
         """Coarse columns of every leaf (near null vectors, modes, extras, then one per piece but decoupled ones, and
         none for the one piece of a leaf where the attached near null vectors span the constant, :attr:`covered`:
-        2-D elasticity's coarse LU in blocks of 3 instead of 4 with one column left empty),
+        2-D elasticity's coarse LU in blocks of 3 instead of 4 with one column left empty; but each connected
+        component's first piece keeps its column, which a null component's drops, so E stays nonsingular),
         their global numbers (leaf after leaf, the leaves in METIS's order where :func:`.sizing.metis_ordered`) and
         W's pattern: a row holds its leaf's lead columns and its own piece's, not the other pieces' (a leaf of 64
         rows coupled only to other ranks, 64 pieces, made W's block and E's rows dense: a 2-D coarse LU of 7 597 rows
@@ -185,7 +186,10 @@ class Structure:
         self.seeded = self.q + self.extra                              # vectors from S's inverse-iteration step
         self.lead = lead = self.fixed + self.seeded
         alone = np.bincount(pc.leaf, minlength=lv.n_leaves) == 1          # leaves of one piece
-        self.has_col = ~lay.decoupled & ~(self.covered & alone[pc.leaf])  # ... whose constant the lead columns span
+        first = np.zeros(self.n_pieces, dtype=bool)                      # each component's first piece keeps its
+        first[np.unique(self.comp_of_piece, return_index=True)[1]] = True   # column: a null one is dropped there
+        spanned = self.covered & alone[pc.leaf] & ~self.my_pieces(first)  # the lead columns span their constant
+        self.has_col = ~lay.decoupled & ~spanned
         before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
         self.piece_index = index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)   # among its leaf's
         count = np.bincount(pc.leaf[self.has_col], minlength=lv.n_leaves)
