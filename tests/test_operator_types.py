@@ -82,16 +82,14 @@ def test_3d_elasticity_pairs_its_node_aggregates():
 
 @pytest.mark.mpi
 def test_a_coarse_v_cycle_gets_the_coarse_near_null_space():
-    """Where GAMG solves the coarse operator of an operator with near null vectors, it is told their coarse
+    """Where GAMG solves the 3-D coarse operator of an operator with near null vectors, it is told their coarse
     coefficients W^T z (W holds each z exactly), not only W^T 1: 3-D elasticity with the rigid-body modes on paired
-    leaves took 44-54 iterations with W^T 1 alone (9 450 and 20 577 rows) and 102 at 150 000, now 25-26; 2-D on two
-    ranks as many as with the coarse LU (204 with GAMG's default, the constant)."""
-    rows, text = run_case(1, "-dim", 3, "-near", "rbm", "-side", 14, "-htp_aggregation", "pairs",
-                          "-htp_coarse_solver", "gamg", "-ksp_view")
-    assert "GAMG" in text and rows[0][1] > 0 and rows[0][0] <= 32, rows
-    lu, _ = run_case(2, "-near", "rbm", "-side", 110)
-    amg, text = run_case(2, "-near", "rbm", "-side", 110, "-htp_coarse_solver", "gamg", "-ksp_view")
-    assert "GAMG" in text and amg[0][1] > 0 and amg[0][0] <= lu[0][0] + 3, (amg, lu)
+    leaves took 44-54 iterations with W^T 1 alone (9 450 and 20 577 rows) and 102 at 150 000, now 25-26, on one and
+    two ranks."""
+    for ranks in (1, 2):
+        rows, text = run_case(ranks, "-dim", 3, "-near", "rbm", "-side", 14, "-htp_aggregation", "pairs",
+                              "-htp_coarse_solver", "gamg", "-ksp_view")
+        assert "GAMG" in text and all(r[1] > 0 for r in rows) and rows[0][0] <= 32, rows
 
 
 def test_near_null_vectors_lie_in_the_coarse_space():
