@@ -10,7 +10,8 @@ with MatLoad; ``-case NAME -n N`` takes one of the benchmark's foreign-study mat
 (:mod:`petsc_htp.bench.foreigncases`: ``dmda2d``, ``fem_tri``, ...; its own right-hand side), in its own row order:
 the P1 meshes number their nodes at random, so a contiguous split hands each rank rows from all over the mesh. Each
 rank owns a contiguous block of rows, as MatLoad gives them; ``-write FILE`` saves the matrix and right-hand side
-for other programs. A matrix whose row sums vanish gets the constant null space attached. ``-warmup`` solves the
+for other programs. A loaded matrix whose row sums vanish gets the constant null space attached (a generated one
+the constant of each region whose row sums vanish, flagged symmetric). ``-warmup`` solves the
 same case at 4096 rows first (``-case`` only), so that one-time costs (imports, first calls) stay out of the timed
 solve. Prints the iterations, PETSc's reason, the setup (KSPSetUp) and solve milliseconds, the true relative
 residual and the peak resident memory of the largest rank; exits non-zero when the solve did not converge.
@@ -19,7 +20,6 @@ import resource
 import sys
 from pathlib import Path
 
-import numpy as np
 import petsc4py
 
 petsc4py.init(sys.argv)
@@ -28,25 +28,20 @@ from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from petsc_htp.onesolve import solve_once  # noqa: E402
-from petsc_htp.petscmat import local_csr, preallocated_aij  # noqa: E402
+from petsc_htp.petscmat import frame_mat, frame_vec  # noqa: E402
 
 
 def generated(case, n, comm):
-    """The foreign-study matrix ``case`` of about ``n`` rows and its right-hand side, each rank setting its own
-    contiguous block of rows."""
+    """The foreign-study matrix ``case`` of about ``n`` rows (each rank setting its own contiguous block of rows,
+    flagged symmetric, a null space attached where a region's row sums vanish) and its right-hand side."""
     from petsc_htp.bench.foreigncases import CASES
+    from petsc_htp.bench.studies.foreign import bare_frame
 
     if case not in CASES:
         raise SystemExit(f"-case must be one of {', '.join(CASES)}, got {case!r}")
-    A, b = CASES[case](n, 0)
-    A = A.tocsr()
-    A.sort_indices()
-    mat, start, end = preallocated_aij(A, comm)
-    mat.setValuesCSR(*local_csr(A, start, end))
-    mat.assemble()
-    rhs = mat.createVecLeft()
-    rhs.setArray(np.asarray(b, dtype=float)[start:end])
-    return mat, rhs
+    frame = bare_frame(*CASES[case](n, 0), case)
+    mat = frame_mat(frame, comm)
+    return mat, frame_vec(frame, mat)
 
 
 def loaded(path, comm):
@@ -86,8 +81,6 @@ def main():
         raise SystemExit("give a matrix file (-f FILE) or a foreign-study case (-case NAME -n N), one of them")
     if case and db.getBool("warmup", False):
         warm = generated(case, 4096, comm)
-        with_null_space(warm[0])
-        warm[0].setOption(PETSc.Mat.Option.SYMMETRIC, True)
         solve_once(*warm)
         for obj in warm:
             obj.destroy()
@@ -98,9 +91,7 @@ def main():
         mat.view(viewer)
         rhs.view(viewer)
         viewer.destroy()
-    null = with_null_space(mat)
-    if case:                                       # a file's matrix is taken as it is (HTPPC checks symmetry itself)
-        mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    null = with_null_space(mat) if path else bool(mat.getNullSpace().handle)   # a file's matrix: not flagged
     its, reason, setup, solve_ms, relres = solve_once(mat, rhs)
     peak = comm.tompi4py().allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024.0
     note = "; constant null space attached" if null else ""

@@ -57,6 +57,16 @@ def p1_laplacian(dim, n, seed=0, frame=0) -> tuple:
     return A, np.full(m, 1.0 / m)
 
 
+def _hex_nodes(side) -> np.ndarray:
+    """(elements, 8): the nodes of every hexahedron of a cube mesh with ``side`` nodes per edge (node (x, y, z) is
+    number (x side + y) side + z), in the order (x, y, z) bits."""
+    e = np.arange(side - 1)
+    ex, ey, ez = np.meshgrid(e, e, e, indexing="ij")
+    corner = (ex * side * side + ey * side + ez).ravel()
+    bits = np.array([(i >> 2) * side * side + ((i >> 1) & 1) * side + (i & 1) for i in range(8)])
+    return corner[:, None] + bits[None, :]
+
+
 def _q1_element() -> np.ndarray:
     """The trilinear (Q1) hexahedron's 8 x 8 Laplacian stiffness on a unit cube, nodes in the order (x, y, z) bits:
     diagonal 1/3, edge neighbours 0, face diagonals -1/12, the opposite corner -1/12 (the unit cube's)."""
@@ -75,12 +85,9 @@ def q1_laplacian(n, frame=0) -> tuple:
     ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)); frames share the pattern."""
     side = max(3, int(round(n ** (1.0 / 3.0)))) + 2            # nodes per edge, the two boundary layers included
     e = side - 1
-    ex, ey, ez = np.meshgrid(np.arange(e), np.arange(e), np.arange(e), indexing="ij")
-    corner = (ex * side * side + ey * side + ez).ravel()
-    bits = np.array([(i >> 2) * side * side + ((i >> 1) & 1) * side + (i & 1) for i in range(8)])
-    nodes = corner[:, None] + bits[None, :]                         # (elements, 8)
-    kappa = (np.exp(np.random.default_rng(frame).standard_normal(corner.size)) if frame
-             else np.ones(corner.size))
+    nodes = _hex_nodes(side)
+    kappa = (np.exp(np.random.default_rng(frame).standard_normal(len(nodes))) if frame
+             else np.ones(len(nodes)))
     vals = kappa[:, None, None] * _q1_element()[None, :, :]
     rows = np.repeat(nodes, 8, axis=1).ravel()
     cols = np.tile(nodes, (1, 8)).ravel()
@@ -124,12 +131,10 @@ def q1_elasticity(elements) -> tuple:
     clamped (its nodes eliminated), three unknowns per node node after node (block size 3; 81-entry rows inside),
     and its six rigid-body modes B (n, 6) (the translations, then the rotations), the near null space GAMG reads."""
     side = elements + 1
-    ex, ey, ez = np.meshgrid(*(np.arange(elements),) * 3, indexing="ij")
-    corner = (ex * side * side + ey * side + ez).ravel()
-    bits = np.array([(i >> 2) * side * side + ((i >> 1) & 1) * side + (i & 1) for i in range(8)])
-    dofs = (3 * (corner[:, None] + bits[None, :])[:, :, None] + np.arange(3)).reshape(corner.size, 24)
+    nodes = _hex_nodes(side)
+    dofs = (3 * nodes[:, :, None] + np.arange(3)).reshape(len(nodes), 24)
     K = _q1_elasticity_element()
-    A = sp.csr_matrix((np.tile(K.ravel(), corner.size), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, 24).ravel())),
+    A = sp.csr_matrix((np.tile(K.ravel(), len(nodes)), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, 24).ravel())),
                       shape=(3 * side ** 3,) * 2)
     A.sum_duplicates()
     x, y, z = (c.ravel().astype(np.float64) for c in np.meshgrid(*(np.arange(side),) * 3, indexing="ij"))

@@ -85,7 +85,9 @@ def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False)
     (``results/elasticity-20261126a``): paired node aggregates took 33-38 against 46-49 iterations with the block
     size alone in 2-D and 0.8-0.9 times the time, 48-51 against 75-83 in 3-D (0.5-0.8 times); the rigid-body
     modes in 2-D 22-25 against 27-29 (0.8-0.9 times); in 3-D their seven columns per paired leaf passed the coarse
-    LU's 8 192 rows at 140 000 rows, whose V-cycle then took 100 iterations (35 with standard leaves). There leaves of paired aggregates (3-17 rows) with the const space
+    LU's 8 192 rows at 150 000 rows, whose V-cycle then took 102 iterations (35 with standard leaves), and 26 once
+    told the coarse near null space (:meth:`.coarsesolve.CoarseSolve._near_null`), in about the standard leaves'
+    time (4.7 against 4.5 s): they stay. There leaves of paired aggregates (3-17 rows) with the const space
     cost less than standard ones (10-40 rows) with the eig space, in about the same CG iterations, as their coarse
     LU is scalar (the foreign study at 64k rows and ``examples/dmda_poisson.py`` at 512^2 and 1024^2, README); P1
     triangles at 16k-262k rows 12-20 % less time in 29-34 against 29-39 iterations, Q1 quadrilaterals (PyAMG's

@@ -185,11 +185,12 @@ class Structure:
         self.extra = (self.q + 1) if cfg.tol > 0 and cfg.coarse != "const" else 0
         self.seeded = self.q + self.extra                              # vectors from S's inverse-iteration step
         self.lead = lead = self.fixed + self.seeded
-        alone = np.bincount(pc.leaf, minlength=lv.n_leaves) == 1          # leaves of one piece
-        first = np.zeros(self.n_pieces, dtype=bool)                      # each component's first piece keeps its
-        first[np.unique(self.comp_of_piece, return_index=True)[1]] = True   # column: a null one is dropped there
-        spanned = self.covered & alone[pc.leaf] & ~self.my_pieces(first)  # the lead columns span their constant
-        self.has_col = ~lay.decoupled & ~spanned
+        self.has_col = ~lay.decoupled
+        if self.covered:                                              # the lead columns span a one-piece leaf's
+            alone = np.bincount(pc.leaf, minlength=lv.n_leaves) == 1  # constant; each component's first piece keeps
+            leading = np.zeros(self.n_pieces, dtype=bool)             # its column, where a null one is dropped
+            leading[np.unique(self.comp_of_piece, return_index=True)[1]] = True
+            self.has_col &= ~(alone[pc.leaf] & ~self.my_pieces(leading))
         before = np.cumsum(self.has_col) - self.has_col                  # pieces with a column before each one
         self.piece_index = index = np.where(self.has_col, before - before[pc.first][pc.leaf], -1)   # among its leaf's
         count = np.bincount(pc.leaf[self.has_col], minlength=lv.n_leaves)
