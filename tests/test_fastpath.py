@@ -277,3 +277,25 @@ def test_twolevel_fastpath_matches_the_pc_and_refreshes_in_place(method):
     np.testing.assert_allclose(z.numpy(), expect, rtol=1e-4, atol=1e-4 * np.abs(expect).max())
     res = GraphPCG(f1.A, pc, "cpu", 8, 1e-8, 500).solve(f1.b)
     assert res.reason == "converged" and res.iterations <= {"eig": 35, "const": 50}[coarse]
+
+
+def test_dense_coarse_limit_on_the_cpu(monkeypatch):
+    from petsc_htp.twolevel import batched
+    from petsc_htp.twolevel.leaves import choose_leaves
+
+    assert batched.max_coarse(torch.device("cpu")) == batched.MAX_COARSE == 8192
+    f = make_frame(1024, seed=0)
+    analysis = batched.analyse(f.A, choose_leaves(f.A, f.coords, leaf=16))
+    monkeypatch.setattr(batched, "MAX_COARSE", 32)
+    with pytest.raises(ValueError, match="coarse size K r = 64 x 1 exceeds 32"):
+        batched.factor(analysis, f.A, "const")
+
+
+@requires_cuda
+def test_twolevel_on_the_gpu_past_the_cpu_coarse_limit():
+    from petsc_htp.twolevel.batched import MAX_COARSE, max_coarse
+
+    assert max_coarse(torch.device("cuda")) > 2 * MAX_COARSE
+    f = make_frame(384 * 384, seed=0)                 # 9 216 leaves of 16 rows: a coarse operator past 8 192
+    res = solve("twolevel_const", f, device="cuda")
+    assert res.reason == "converged" and res.iterations <= 40

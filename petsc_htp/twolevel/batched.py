@@ -30,7 +30,8 @@ from .leaves import Leaves
 COARSE_KINDS = ("const", "eig", "given", "seeded")
 PIVOT_TOL = 1e-14           # Cholesky pivot below this times the largest diagonal: singular
 SHIFTS = (1e-12, 1e-9, 1e-6, 1e-3, 2.0)   # Cholesky fallback shifts, times the row-sum bound
-MAX_COARSE = 8192           # largest coarse size for the dense coarse operator
+MAX_COARSE = 8192           # largest coarse size for the dense coarse operator on the CPU
+GPU_COARSE_SHARE = 1 / 12   # on a GPU: the largest whose float64 matrix takes this share of the free memory
 DTYPE = torch.float64
 
 
@@ -228,6 +229,16 @@ def _spd_inverse(X):
     if inv.device.type != "cpu":             # LAPACK's potri result is exactly symmetric
         inv = 0.5 * (inv + inv.mT)
     return inv, shift, count
+
+
+def max_coarse(device) -> int:
+    """The largest dense coarse operator on ``device``: :data:`MAX_COARSE` on the CPU; on a GPU the size whose
+    float64 matrix takes :data:`GPU_COARSE_SHARE` of the free memory (its Cholesky and inverse take about four
+    such matrices), at least :data:`MAX_COARSE`."""
+    if device.type != "cuda":
+        return MAX_COARSE
+    free, _ = torch.cuda.mem_get_info(device)
+    return max(MAX_COARSE, int((free * GPU_COARSE_SHARE / 8) ** 0.5))
 
 
 def null_rule(analysis, A):
@@ -504,8 +515,9 @@ def factor(analysis: TwoLevelAnalysis, A, coarse="eig", rank=4, basis=None) -> B
     times["leaf"] = _ms(t0, device)
     t0 = time.perf_counter()
     P = dropped_columns(analysis, _coarse_basis(analysis, A, d_values, coarse, rank, basis), drop).to(device)
-    if P.shape[0] * P.shape[2] > MAX_COARSE:
-        raise ValueError(f"coarse size K r = {P.shape[0]} x {P.shape[2]} exceeds {MAX_COARSE} "
+    limit = max_coarse(device)
+    if P.shape[0] * P.shape[2] > limit:
+        raise ValueError(f"coarse size K r = {P.shape[0]} x {P.shape[2]} exceeds {limit} "
                          "(dense coarse operator); use larger leaves or a smaller rank")
     times["coarse_space"] = _ms(t0, device)
     t0 = time.perf_counter()
