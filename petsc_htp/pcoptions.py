@@ -17,7 +17,7 @@ FORMS = ("auto", "deflated", "balanced")
 # Fields whose change needs a new analysis (ordering, partition), or may switch between the two-level method and a
 # small matrix's whole-matrix factor (form, coarse_space_every); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "aggregation", "leaf", "coarse", "coarse_checkpoint",
-                  "coarse_rank", "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every")
+                  "coarse_rank", "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every", "block_size")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
@@ -32,6 +32,9 @@ HELP = {
                    "2-D where rows hold at most 5.5 entries on average, at most 5% of the couplings are positive, or "
                    "the Mat has a block size or near null space; else standard), standard (aggregates of "
                    "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
+    "block_size": "twolevel: unknowns per node (leaves hold whole nodes, each component's constant is a coarse "
+                  "vector); 0: the Mat's block size, else 3 or 2 where the nonzero pattern comes in such nodes on "
+                  "every rank (-ksp_view says so), else 1",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D, const on paired aggregates; const, with ICC(0) leaf solves, "
@@ -80,6 +83,7 @@ class HTPOptions:
     ordering: str = "auto"
     aggregation: str = "auto"
     leaf: int = 0
+    block_size: int = 0
     coarse: str = "auto"
     coarse_rank: int = 2
     coarse_checkpoint: str = ""
@@ -121,7 +125,7 @@ class HTPOptions:
         if self.leaf == 1 or self.leaf < 0:
             raise ValueError(f"{opt}leaf must be 0 (by the problem) or >= 2, got {self.leaf}")
         for name, low in (("threads", 1), ("coarse_rank", 1), ("coarse_space_every", 0), ("probe", -1),
-                          ("overlap", 0), ("direct_max", -1)):
+                          ("overlap", 0), ("direct_max", -1), ("block_size", 0)):
             if getattr(self, name) < low:
                 raise ValueError(f"{opt}{name} must be >= {low}, got {getattr(self, name)}")
         if self.variant == "paper" and self.ordering in ("metis", "graph", "aggregation"):

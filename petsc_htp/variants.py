@@ -73,7 +73,7 @@ class TwoLevel:
         """The two-level configuration from the options."""
         o = self.opts
         return Config(o.leaf, o.ordering, o.coarse, o.coarse_rank, o.coarse_tol, o.form, o.overlap, o.coarse_solver,
-                      aggregation=o.aggregation)
+                      aggregation=o.aggregation, block_size=o.block_size)
 
     def analyse(self, mat, A, coords):
         """Leaves, index maps, components and every matrix with its pattern (see

@@ -51,18 +51,22 @@ def test_baij_and_sbaij_operators_converge_and_keep_their_analysis(ranks, kind):
 @pytest.mark.mpi
 def test_block_size_and_near_null_space_shape_the_coarse_space():
     """Elasticity (24k rows): the block size's component constants and then the attached rigid-body modes cut CG's
-    iterations several times over, on one and two ranks, and -ksp_view says where the vectors came from."""
+    iterations several times over, on one and two ranks, and -ksp_view says where the vectors came from. A Mat
+    with no block size gets it from its pattern (:mod:`petsc_htp.twolevel.blocksize`); ``-htp_block_size 1``
+    treats it as scalar."""
     for ranks in (1, 2):
-        none, _ = run_case(ranks, "-mat_kind", "aij", "-near", "none", "-side", 110)
+        scalar, _ = run_case(ranks, "-mat_kind", "aij", "-near", "none", "-side", 110, "-htp_block_size", 1)
+        bare, found = run_case(ranks, "-mat_kind", "aij", "-near", "none", "-side", 110, "-ksp_view")
         bs, _ = run_case(ranks, "-mat_kind", "aij", "-near", "bs", "-side", 110)
         rbm, text = run_case(ranks, "-mat_kind", "aij", "-near", "rbm", "-side", 110, "-ksp_view")
-        assert rbm[0][0] < bs[0][0] <= 50 < 3 * 50 < none[0][0]
+        assert rbm[0][0] < bs[0][0] <= 50 < 3 * 50 < scalar[0][0]
+        assert bare[0][0] == bs[0][0] and "block size 2, found in the pattern" in found
         assert rbm[0][0] <= 32
     assert "3 per leaf, from 3 near null vector(s) per leaf spanning the piece constants (the Mat's near null space)" \
         in text                             # the translations span each piece's constant: no column of its own
     _, text = run_case(1, "-mat_kind", "aij", "-near", "bs", "-side", 110, "-ksp_view")
-    assert ("from 1 near null vector(s) per leaf beside the piece constants (block size 2: each component's "
-            "constant)") in text
+    assert ("from 1 near null vector(s) per leaf beside the piece constants (block size 2, the Mat's: each "
+            "component's constant)") in text
 
 
 @pytest.mark.mpi

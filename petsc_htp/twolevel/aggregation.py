@@ -149,26 +149,36 @@ def _graph(M, agg, count) -> sp.csr_matrix:
     return G
 
 
-def node_graph(A, bs) -> sp.csr_matrix:
-    """The graph of ``A``'s nodes of ``bs`` rows each: the Frobenius norm of every bs x bs block (PyAMG's
-    amalgamation for block matrices; scipy's compiled BSR conversion)."""
-    B = A.tobsr((bs, bs))
-    return sp.csr_matrix((np.sqrt(np.square(B.data).sum(axis=(1, 2))), B.indices, B.indptr),
-                         shape=(A.shape[0] // bs, A.shape[1] // bs))
+def nodes(n, bs, offset=0) -> np.ndarray:
+    """The node of each of ``n`` rows in nodes of ``bs`` rows, the first row ``offset`` rows into its node (a rank's
+    rows that start inside a node: its first and last node may be partial)."""
+    return (np.arange(n) + offset) // bs
 
 
-def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard") -> np.ndarray:
+def node_graph(A, node) -> sp.csr_matrix:
+    """The graph of ``A``'s nodes (``node``: each row's, :func:`nodes`): the Frobenius norm of every node block
+    (PyAMG's amalgamation for block matrices, as P^T (A o A) P with scipy's compiled products)."""
+    n, count = A.shape[0], int(node[-1]) + 1 if node.size else 0
+    P = sp.csr_matrix((np.ones(n), node, np.arange(n + 1)), shape=(n, count))
+    G = (P.T.tocsr() @ sp.csr_matrix((np.square(A.data), A.indices, A.indptr), shape=A.shape) @ P).tocsr()
+    G.data = np.sqrt(G.data)
+    G.sort_indices()
+    return G
+
+
+def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
     ``theta`` (None: :func:`threshold`'s for A; the standard passes after the first take the same on the aggregates'
     graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
-    module docstring). With a block size ``bs`` > 1 that divides the rows, the nodes' graph (:func:`node_graph`) is
-    aggregated, so a leaf holds whole nodes."""
+    module docstring). With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset``
+    rows into its node) is aggregated, so a leaf holds whole nodes."""
     if second not in SECOND:
         raise ValueError(f"unknown aggregation pass {second!r}; expected one of {', '.join(SECOND)}")
     n = A.shape[0]
-    if bs > 1 and n % bs == 0:
-        return np.repeat(aggregates(node_graph(A, bs), theta, passes, second=second), bs)
+    if bs > 1 and n:
+        node = nodes(n, bs, offset)
+        return aggregates(node_graph(A, node), theta, passes, second=second)[node]
     lone = decoupled_rows(A)
     keep = np.flatnonzero(~lone)
     part = np.full(n, -1, dtype=np.int64)

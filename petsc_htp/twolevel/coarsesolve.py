@@ -112,7 +112,7 @@ class CoarseSolve:
         (3-D elasticity on paired leaves: 26 CG iterations against 102 with W^T 1 alone). In 2-D the two V-cycles of
         :data:`.sizing.COARSE_AMG_2D` told W^T z took 51 iterations on 2-D elasticity at 320 000 rows on two ranks and
         then, on new values, stopped with DIVERGED_INDEFINITE_PC (190 iterations with W^T 1 alone): not there."""
-        near = nearnull.vectors(ops.mat) if self.st.dim == 3 else None
+        near = nearnull.vectors(ops.mat, self.st.bs) if self.st.dim == 3 else None
         columns = [None] + ([] if near is None else list(near.T))          # None: the constant
         fine, vecs = ops.W.createVecLeft(), []
         for column in columns:

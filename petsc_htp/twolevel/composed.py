@@ -93,7 +93,7 @@ class TwoLevelPC:
         vectors (W's pattern), or the couplings moved away from the leaves (:meth:`.structure.Structure.moved`) and
         either a severe jump moved into them (:meth:`.structure.Structure.jumped`) or new ones would pay
         (:func:`.spacereuse.keeps_leaves`; ``penalty``: what old leaves cost the last time values moved)."""
-        if self.st.fixed != nearnull.count(self.mat):
+        if self.st.fixed != nearnull.count(self.mat, self.st.bs):
             return True
         if not self.st.moved(rows):
             return False
@@ -119,7 +119,7 @@ class TwoLevelPC:
                         with diagonal_block(self.mat, rows) as block:
                             weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
-                                       self._seeds(rows, density), nearnull.vectors(self.mat), weights)
+                                       self._seeds(rows, density), nearnull.vectors(self.mat, self.st.bs), weights)
                 else:
                     self.space.age += 1
             finally:
@@ -211,7 +211,7 @@ class TwoLevelPC:
                 f"coarse: {cfg.coarse} ({COARSE_TEXT[cfg.coarse]}), {q}"
                 + (f", from {st.fixed} near null vector(s) per leaf "
                    + ("spanning the piece constants" if st.covered else "beside the piece constants")
-                   + f" ({nearnull.describe(self.mat)})" if st.fixed else "")
+                   + f" ({nearnull.describe(self.mat, st.bs, st.bs_source)})" if st.fixed else "")
                 + (f" (up to {st.extra} more where Ritz values are at most {cfg.tol:g} x the mean diagonal)"
                    if st.extra else "")
                 + f"; global size {st.m}, {sp.null_components} null component(s) left out"

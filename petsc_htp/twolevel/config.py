@@ -33,6 +33,8 @@ class Config:
         0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).
     solver : str
         Coarse solver: lu, gamg or auto (by the coarse operator's size and dimension).
+    block_size : int
+        Unknowns per node; 0: the Mat's, else found in the pattern (:mod:`petsc_htp.twolevel.blocksize`).
     """
 
     leaf: int = 0
@@ -44,3 +46,4 @@ class Config:
     overlap: int = 0
     solver: str = "auto"
     aggregation: str = "auto"
+    block_size: int = 0

@@ -243,7 +243,7 @@ def _cut_fraction(A, leaves) -> float:
     return float(np.count_nonzero(leaf[rows[off]] != leaf[A.indices[off]]) / max(np.count_nonzero(off), 1))
 
 
-def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard", theta=None) -> Leaves:
+def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard", theta=None, offset=0) -> Leaves:
     """Leaves for ``A`` by layout.
 
     Parameters
@@ -262,7 +262,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standar
     leaf : int
         Target leaf size.
     bs : int
-        Block size: aggregation leaves hold whole nodes of ``bs`` rows.
+        Block size: aggregation leaves hold whole nodes of ``bs`` rows (A's first row ``offset`` rows into its node).
     second : {'standard', 'pairs'}
         Aggregation leaves: the kind of the passes after the first (:func:`~.aggregation.aggregates`).
     theta : float, optional
@@ -273,7 +273,7 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standar
     A = check_square(A)
     t0 = time.perf_counter()
     if layout == "aggregation" or (layout == "auto" and coords is None):
-        return part_leaves(A, aggregates(A, theta, bs=bs, second=second), "aggregation", t0, smooth=False)
+        return part_leaves(A, aggregates(A, theta, bs=bs, second=second, offset=offset), "aggregation", t0, smooth=False)
     if layout == "graph":
         xy = grid_coordinates(A)
         if xy is not None:

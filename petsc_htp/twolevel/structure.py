@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from . import coarseorder, nearnull, nullspace, sizing
+from . import blocksize, coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values
 from .aggregation import THETA, sampled_shares, threshold
@@ -67,7 +67,8 @@ class Structure:
         self.dim = int(coll.max_array(np.array([local]))[0])
         self.auto = [name for name, unset in (("leaf", cfg.leaf == 0), ("coarse", cfg.coarse == "auto"),
                                               ("aggregation", cfg.aggregation == "auto")) if unset]
-        self.fixed, self.attached = nearnull.count(mat), nearnull.attached(mat)
+        self.bs, self.bs_source = blocksize.block_size(mat, rows, coll, cfg.block_size)
+        self.fixed, self.attached = nearnull.count(mat, self.bs), nearnull.attached(mat)
         self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
@@ -76,8 +77,8 @@ class Structure:
         theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
                  else threshold(sampled_shares(block)[1]))              # coordinates: aggregation leaves if asked
         self.theta = float(coll.min_array(np.array([theta]))[0])      # strong couplings: the leaves' and moved()'s
-        self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf, mat.getBlockSize(), cfg.aggregation,
-                                    self.theta)
+        self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf, self.bs, cfg.aggregation,
+                                    self.theta, mat.getOwnershipRange()[0] % self.bs)
         learned = cfg.coarse == "learned"             # only the network reads the block again (the analysis)
         self.block = (block if coll.size == 1 else block.copy()) if learned else None
 
