@@ -33,8 +33,8 @@ HELP = {
                    "the Mat has a block size or near null space; else standard), standard (aggregates of "
                    "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
     "block_size": "twolevel: unknowns per node (leaves hold whole nodes, each component's constant is a coarse "
-                  "vector); 0: the Mat's block size, else 3 or 2 where the nonzero pattern comes in such nodes on "
-                  "every rank (-ksp_view says so), else 1",
+                  "vector); 0: the Mat's block size, else 6, 4, 3 or 2 where the nonzero pattern comes in such "
+                  "nodes on every rank (-ksp_view says so), else 1",
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D, const on paired aggregates; const, with ICC(0) leaf solves, "

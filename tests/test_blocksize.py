@@ -38,6 +38,8 @@ def found(A, start=0) -> list:
 
 def test_elasticity_patterns_are_blocked_and_scalar_ones_are_not():
     assert found(sorted_csr(linear_elasticity((30, 30))[0])) == [2]
+    for b in (4, 6):                                            # nodes of b rows coupled as a 2-D Laplacian's
+        assert found(sorted_csr(sp.kron(poisson((20, 20)), np.ones((b, b))) + sp.identity(400 * b)))[0] == b
     assert found(sorted_csr(meshes.q1_elasticity(5)[0])) == [3]
     for A in (poisson((40, 40)), poisson((12, 12, 12)), CASES["dmda2d"](4096, 0)[0], CASES["fem_tri"](4096, 0)[0],
               CASES["fem_hex"](4096, 0)[0]):

@@ -7,9 +7,9 @@ elasticity at 45 000 rows took 243 CG iterations (659 ms) bare against 32 (178 m
 164 and 17; 3-D trilinear elasticity at 27 783 rows 192 against 47. Such a pattern is blocked: the ``b`` rows of a
 node hold the same columns, and those come as whole nodes (``b`` consecutive columns from a multiple of ``b``). A
 scalar stencil's is not (a row's neighbours differ from the next row's), so where the pattern is exactly blocked by
-``b`` on every rank (:data:`CANDIDATES`, the largest such; a rank's rows may start or end inside a node, as PETSc's
-split of 9 800 rows over 3 ranks does) the two-level method takes it as the block size: leaves of whole nodes and
-each component's constant (:mod:`.nearnull`). ``-htp_block_size`` overrides it.
+``b`` on every rank (:data:`CANDIDATES`: 6, 4, 3 or 2, the largest such; a rank's rows may start or end inside a
+node, as PETSc's split of 9 800 rows over 3 ranks does) the two-level method takes it as the block size: leaves of
+whole nodes and each component's constant (:mod:`.nearnull`). ``-htp_block_size`` overrides it.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from .csr import row_entries
 
-CANDIDATES = (3, 2)     # block sizes tried, the largest first (3-D and 2-D elasticity, Stokes-like triples)
+CANDIDATES = (6, 4, 3, 2)   # block sizes tried, the largest first (shells, 2-D plates, 3-D and 2-D elasticity)
 SAMPLE_ROWS = 4096      # rows checked first (a scalar pattern fails there), before all of them
 
 
