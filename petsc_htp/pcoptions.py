@@ -17,7 +17,8 @@ FORMS = ("auto", "deflated", "balanced")
 # Fields whose change needs a new analysis (ordering, partition), or may switch between the two-level method and a
 # small matrix's whole-matrix factor (form, coarse_space_every); the others only a numeric step.
 PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "aggregation", "leaf", "coarse", "coarse_checkpoint",
-                  "coarse_rank", "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every", "block_size")
+                  "coarse_rank", "coarse_tol", "overlap", "coarse_solver", "direct_max", "form", "coarse_space_every",
+                  "block_size")
 
 HELP = {
     "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
