@@ -31,7 +31,8 @@ HELP = {
     "aggregation": "twolevel aggregation leaves only: the passes after the first, auto (pairs, with the const "
                    "space, where -htp_coarse is auto or const: in 3-D unless a near null space is attached, and in "
                    "2-D where rows hold at most 5.5 entries on average, at most 5% of the couplings are positive, or "
-                   "the Mat has a block size or near null space; else standard), standard (aggregates of "
+                   "there is a block size (the Mat's, -htp_block_size or one found in the pattern) or near null space; "
+                   "else standard), standard (aggregates of "
                    "aggregates: 10-40 rows) or pairs (aggregates matched in pairs: 3-17 rows)",
     "block_size": "twolevel: unknowns per node (leaves hold whole nodes, each component's constant is a coarse "
                   "vector); 0: the Mat's block size, else 6, 4, 3 or 2 where the nonzero pattern comes in such "
@@ -39,7 +40,7 @@ HELP = {
     "leaf": "twolevel: rows per leaf; 0: by the problem (32 in 2-D; 64 in 3-D, 32 above N = 524288, where the "
             "coarse solve is GAMG); the paper's leaf size is the network's",
     "coarse": "twolevel coarse space: auto (eig in 2-D, const on paired aggregates; const, with ICC(0) leaf solves, "
-              "in 3-D; const where the Mat has a block size or a near null space, whose vectors every leaf takes "
+              "in 3-D; const where there is a block size or a near null space, whose vectors every leaf takes "
               "too), const (r=1), eig (local Neumann eigenvectors) or learned (network)",
     "coarse_checkpoint": "twolevel learned coarse space: network file (empty: the shipped coarse_default.pt)",
     "coarse_rank": "twolevel: coarse vectors per leaf r: each piece's constant and r - 1 more (eig; learned takes "

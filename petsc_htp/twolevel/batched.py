@@ -31,7 +31,7 @@ COARSE_KINDS = ("const", "eig", "given", "seeded")
 PIVOT_TOL = 1e-14           # Cholesky pivot below this times the largest diagonal: singular
 SHIFTS = (1e-12, 1e-9, 1e-6, 1e-3, 2.0)   # Cholesky fallback shifts, times the row-sum bound
 MAX_COARSE = 8192           # largest coarse size for the dense coarse operator on the CPU
-GPU_COARSE_SHARE = 1 / 12   # on a GPU: the largest whose float64 matrix takes this share of the free memory
+GPU_COARSE_SHARE = 1 / 12   # on a GPU: the largest whose float64 matrix takes this share of its memory
 DTYPE = torch.float64
 
 
@@ -233,12 +233,13 @@ def _spd_inverse(X):
 
 def max_coarse(device) -> int:
     """The largest dense coarse operator on ``device``: :data:`MAX_COARSE` on the CPU; on a GPU the size whose
-    float64 matrix takes :data:`GPU_COARSE_SHARE` of the free memory (its Cholesky and inverse take about four
-    such matrices), at least :data:`MAX_COARSE`."""
+    float64 matrix takes :data:`GPU_COARSE_SHARE` of the card's memory (its Cholesky and inverse take about four
+    such matrices; the total, not the free memory, so a refresh that still holds the last frame's inverse gets the
+    same limit), at least :data:`MAX_COARSE`."""
     if device.type != "cuda":
         return MAX_COARSE
-    free, _ = torch.cuda.mem_get_info(device)
-    return max(MAX_COARSE, int((free * GPU_COARSE_SHARE / 8) ** 0.5))
+    total = torch.cuda.get_device_properties(device).total_memory
+    return max(MAX_COARSE, int((total * GPU_COARSE_SHARE / 8) ** 0.5))
 
 
 def null_rule(analysis, A):

@@ -5,11 +5,17 @@ a plain AIJ matrix (``MatLoad`` without ``-matload_block_size``, a scipy matrix 
 block size 1, and the leaves then split nodes and the coarse space misses each component's constant: PyAMG's 2-D
 elasticity at 45 000 rows took 243 CG iterations (659 ms) bare against 32 (178 ms) with the block size set, GAMG
 164 and 17; 3-D trilinear elasticity at 27 783 rows 192 against 47. Such a pattern is blocked: the ``b`` rows of a
-node hold the same columns, and those come as whole nodes (``b`` consecutive columns from a multiple of ``b``). A
-scalar stencil's is not (a row's neighbours differ from the next row's), so where the pattern is exactly blocked by
-``b`` on every rank (:data:`CANDIDATES`: 6, 4, 3 or 2, the largest such; a rank's rows may start or end inside a
-node, as PETSc's split of 9 800 rows over 3 ranks does) the two-level method takes it as the block size: leaves of
-whole nodes and each component's constant (:mod:`.nearnull`). ``-htp_block_size`` overrides it.
+node together couple whole nodes (``b`` consecutive columns from a multiple of ``b``), whether or not the zero
+couplings inside a block are stored (PyAMG's elasticity stores 28 % of its entries as explicit zeros; scipy's
+arithmetic drops them). A scalar stencil's is not: a row couples its neighbour in the previous node alone.
+
+The nodes of :data:`SAMPLE_ROWS` rows spread over each rank's rows are checked (0.3-3 ms at any size; all of
+80 000 rows took 56-74 ms); where they are blocked by ``b`` on every rank (:data:`CANDIDATES`, the largest such),
+the two-level method takes ``b`` as the block size: leaves of whole nodes and each component's constant
+(:mod:`.nearnull`). A pattern blocked only where sampled (a few scalar rows among the nodes) gets nodes too: any
+partition into nodes gives leaves and coarse vectors of a valid preconditioner, so a wrong guess costs iterations,
+never the answer. A rank's rows may start or end inside a node (PETSc's split of 9 800 rows over 3 ranks): such a
+partial node is not checked. ``-htp_block_size`` overrides it all.
 """
 from __future__ import annotations
 
@@ -18,42 +24,52 @@ import numpy as np
 from .csr import row_entries
 
 CANDIDATES = (6, 4, 3, 2)   # block sizes tried, the largest first (shells, 2-D plates, 3-D and 2-D elasticity)
-SAMPLE_ROWS = 4096      # rows checked first (a scalar pattern fails there), before all of them
+SAMPLE_ROWS = 1024          # rows whose nodes are checked
+FIRST_ROWS = 64             # ... of them first (a scalar pattern fails at nearly every node)
+MAX_BLOCK = 64              # the largest -htp_block_size
 
 
-def blocked(indptr, indices, start, b, rows=None) -> bool:
-    """Whether the CSR rows ``indptr``/``indices`` (global columns, sorted; the first row is global row ``start``)
-    come in nodes of ``b`` rows (global row // b; a rank's first and last node may be partial) whose rows hold the
-    same columns, which are whole nodes; ``rows``: check only those (local numbers)."""
+def _distinct(values) -> np.ndarray:
+    """The distinct ``values``, sorted (a sort and a mask: numpy's hashing unique took 3 ms on 20 000 values)."""
+    values = np.sort(values)
+    return values[np.r_[True, values[1:] != values[:-1]]]
+
+
+def blocked(indptr, indices, start, b, rows) -> bool:
+    """Whether the whole nodes of ``rows`` (local row numbers; nodes of ``b`` rows by global row, the first local
+    row global row ``start``, partial nodes at either end skipped) of the CSR rows ``indptr``/``indices`` (global
+    columns) each couple whole column nodes: the union of a node's rows' columns is a union of nodes of ``b``
+    columns (a block's zeros need not be stored)."""
     n = indptr.size - 1
-    if n == 0:
+    lo = (-start) % b                                                 # the first whole node's first row
+    nodes = _distinct((rows[rows >= lo] - lo) // b)
+    nodes = nodes[lo + (nodes + 1) * b <= n]
+    where, owner = row_entries(indptr, (lo + nodes[:, None] * b + np.arange(b)).ravel())
+    if where.size == 0:
         return True
-    lengths = np.diff(indptr)
-    rows = np.arange(n) if rows is None else rows
-    mate = np.maximum((start + rows) // b * b, start) - start        # the node's first row on this rank
-    if np.any(lengths[rows] != lengths[mate]) or np.any(lengths[rows] % b):
-        return False
-    where, owner = row_entries(indptr, rows)
-    pos = where - indptr[rows[owner]]                                 # the entry's place in its row
-    same = indptr[mate[owner]] + pos                                  # the same place in the node's first row
-    lead = indices[same - pos % b].astype(np.int64)                   # the first column of its column node
-    return bool(np.array_equal(indices[where], indices[same]) and np.all(lead % b == 0)
-                and np.all(indices[same] == lead + pos % b))
+    cols = indices[where].astype(np.int64)
+    width = int(cols.max()) + b
+    key = _distinct((owner // b) * np.int64(width) + cols)           # each node's columns, sorted, once
+    node, cols = np.divmod(key, width)
+    runs = np.flatnonzero(np.r_[True, (node[1:] != node[:-1]) | (cols[1:] // b != cols[:-1] // b)])
+    return bool(np.all(np.diff(np.r_[runs, key.size]) == b))       # each run of one column node holds it whole
 
 
 def detect(indptr, indices, start) -> tuple:
-    """Flags (one per :data:`CANDIDATES`): whether this rank's rows are blocked by each, a sample of rows first."""
-    flags = []
+    """Flags (one per :data:`CANDIDATES`): whether the nodes of :data:`SAMPLE_ROWS` rows spread over this rank's
+    rows are blocked by each (:func:`blocked`), :data:`FIRST_ROWS` of them first (a scalar pattern fails there)."""
     n = indptr.size - 1
-    sample = np.arange(0, n, max(1, n // SAMPLE_ROWS))
-    for b in CANDIDATES:
-        flags.append(blocked(indptr, indices, start, b, sample) and blocked(indptr, indices, start, b))
-    return tuple(flags)
+    few, many = (np.arange(0, n, max(1, n // k)) for k in (FIRST_ROWS, SAMPLE_ROWS))
+    return tuple(blocked(indptr, indices, start, b, few) and blocked(indptr, indices, start, b, many)
+                 for b in CANDIDATES)
 
 
 def block_size(mat, rows, coll, option=0) -> tuple:
-    """(block size, where it comes from) for the two-level method: ``option`` where set (>= 1), else the Mat's
-    where above 1, else the largest of :data:`CANDIDATES` that blocks every rank's rows (collective), else 1."""
+    """(block size, where it comes from) for the two-level method: ``option`` where set (1 to :data:`MAX_BLOCK`),
+    else the Mat's where above 1, else the largest of :data:`CANDIDATES` that blocks every rank's rows (collective),
+    else 1."""
+    if option > MAX_BLOCK:
+        raise ValueError(f"-htp_block_size {option} is more unknowns per node than {MAX_BLOCK}")
     if option >= 1:
         return option, "from -htp_block_size"
     if mat.getBlockSize() > 1:

@@ -273,7 +273,8 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standar
     A = check_square(A)
     t0 = time.perf_counter()
     if layout == "aggregation" or (layout == "auto" and coords is None):
-        return part_leaves(A, aggregates(A, theta, bs=bs, second=second, offset=offset), "aggregation", t0, smooth=False)
+        part = aggregates(A, theta, bs=bs, second=second, offset=offset)
+        return part_leaves(A, part, "aggregation", t0, smooth=False)
     if layout == "graph":
         xy = grid_coordinates(A)
         if xy is not None:
