@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from .amgkernels import kernels
 from .csr import compact
@@ -65,15 +64,7 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves, order=None) -> Pieces:
     """
 
     n = leaf_of_row.size
-    it = np.int32 if max(n, int(indptr[-1])) < 2 ** 31 else np.int64
-    label = np.empty(n, dtype=it)
-    kernels("graph").connected_components(n, indptr.astype(it, copy=False), indices.astype(it, copy=False), label)
-    # PyAMG's compiled search follows each row's entries (no validation, no transpose: 50 against 250 ms for scipy's
-    # at 1M rows); a pattern that is not symmetric (an entry one way only) can split a part, so scipy then decides
-    if np.any(np.repeat(label, np.diff(indptr)) != label[indices]):
-        graph = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
-        label = connected_components(graph, directed=False)[1]
-    n_pieces = int(label.max(initial=-1)) + 1
+    n_pieces, label = _connected(indptr, indices, n)
     # either numbers parts by their lowest row, so in the leaves' order pieces run leaf by leaf
     if order is not None:                       # else number them by their first row in the leaves' order
         label = label[order]
@@ -90,13 +81,29 @@ def find_pieces(indptr, indices, leaf_of_row, n_leaves, order=None) -> Pieces:
                   compact(label - first[leaf_of_row], n))
 
 
+def _connected(indptr, indices, n) -> tuple:
+    """(number, label of each row) of the connected components of the graph of CSR ``indptr``/``indices`` (n rows):
+    PyAMG's compiled search, which follows each row's entries (no validation, no transpose: 50 against 250 ms for
+    scipy's at 1M rows); a pattern that is not symmetric (an entry one way only) can split a component, so scipy's
+    then decides."""
+    it = np.int32 if max(n, int(indptr[-1])) < 2 ** 31 else np.int64
+    label = np.empty(n, dtype=it)
+    kernels("graph").connected_components(n, indptr.astype(it, copy=False), indices.astype(it, copy=False), label)
+    if np.any(np.repeat(label, np.diff(indptr)) != label[indices]):
+        from scipy.sparse.csgraph import connected_components
+
+        graph = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
+        return connected_components(graph, directed=False)
+    return int(label.max(initial=-1)) + 1, label
+
+
 def graph_components(A) -> tuple:
-    """(number, label of each row) of the connected components of a scipy matrix's nonzero entries."""
+    """(number, label of each row) of the connected components of a square scipy CSR matrix's nonzero entries."""
     graph = A
     if not np.all(A.data != 0):
         graph = A.copy()
         graph.eliminate_zeros()
-    return connected_components(graph, directed=False)
+    return _connected(graph.indptr, graph.indices, graph.shape[0])
 
 
 def first_rows(label, marked) -> np.ndarray:
@@ -118,9 +125,9 @@ def components(n_pieces, edges) -> tuple:
     Returns (number of components, component of each piece).
     """
     edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    graph = sp.csr_matrix((np.ones(len(edges), dtype=np.int8), (edges[:, 0], edges[:, 1])),
-                          shape=(n_pieces, n_pieces))
-    return connected_components(graph, directed=False)
+    both = np.concatenate([edges, edges[:, ::-1]])                  # each edge both ways: a symmetric pattern
+    graph = sp.csr_matrix((np.ones(len(both), dtype=np.int8), (both[:, 0], both[:, 1])), shape=(n_pieces, n_pieces))
+    return _connected(graph.indptr, graph.indices, n_pieces)
 
 
 def null_by_rowsums(rowsum, diag, comp_of_row, n_comp, reduce_max=None) -> np.ndarray:
