@@ -15,6 +15,7 @@ import sys
 SETTERS = (("openblas_set_num_threads", "openblas_get_num_threads"),
            ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
            ("omp_set_num_threads", "omp_get_max_threads"))
+LIKELY = ("blas", "lapack", "omp")   # loaded names worth resolving (a link named so may lead to a pool)
 _FOUND = {}          # library path -> its (setter, getter) pairs
 _REAL = {}           # loaded object's name -> its real path
 _SCANNED = [-1, -1, []]  # len(sys.modules) when last looked, shared objects loaded at the last scan, the pairs
@@ -54,9 +55,9 @@ def thread_pools() -> list:
     names = loaded_objects()
     if _SCANNED[1] == len(names):
         return _SCANNED[2]
-    for name in names:
+    for name in names:                     # resolving all ~120 links took 8 ms: only names a pool could be behind
         if name not in _REAL:
-            _REAL[name] = os.path.realpath(name) if name else ""
+            _REAL[name] = os.path.realpath(name) if any(k in name for k in LIKELY) else ""
     paths = sorted({real for real in map(_REAL.get, names) if "blas" in real or "gomp" in real})
     for path in paths:
         if path not in _FOUND:
