@@ -1,7 +1,8 @@
 """Run under mpiexec (2 or 3 ranks): PyAMG's 2-D elasticity (9 800 rows, two unknowns per node) handed over as a bare
-AIJ Mat. Split as PETSc splits it, and split so that every rank boundary cuts a node (one more row on the first
-rank), every rank finds block size 2 in the pattern and CG converges in at most 40 iterations; the same matrix's
-pattern made scalar (a 5-point Laplacian of 9 800 rows) finds none; prints 'blocksize ok'."""
+AIJ Mat. Split as PETSc splits it, split so that every rank boundary cuts a node (one more row on the first rank),
+and split so that every rank but the first holds one row (no whole node to check there), every rank finds block
+size 2 in the pattern and CG converges in at most 40 iterations; a scalar matrix (a 5-point Laplacian of 9 800 rows)
+finds none; prints 'blocksize ok'."""
 import sys
 
 import petsc4py
@@ -36,8 +37,9 @@ def main():
     size = PETSc.COMM_WORLD.getSize()
     split = [n // size + (1 if r < n % size else 0) for r in range(size)]
     cut = [k + (1 if r == 0 else -1 if r == 1 else 0) for r, k in enumerate(split)]
+    alone = [n - size + 1 if r == 0 else 1 for r in range(size)]   # every rank but the first holds one row
     found = {}
-    for name, local in (("petsc", split[rank]), ("cut", cut[rank])):
+    for name, local in (("petsc", split[rank]), ("cut", cut[rank]), ("alone", alone[rank])):
         mat, start = bare(A, local)
         rhs = mat.createVecLeft()
         rhs.setArray(np.random.default_rng(0).standard_normal(n)[start:start + local])
@@ -60,7 +62,7 @@ def main():
     ksp.setFromOptions()
     ksp.setUp()
     found["scalar"] = ksp.getPC().getPythonContext().setup.st.bs
-    assert found == {"petsc": 2, "cut": 2, "scalar": 1}, found
+    assert found == {"petsc": 2, "cut": 2, "alone": 2, "scalar": 1}, found
     PETSc.Sys.Print("blocksize ok")
 
 

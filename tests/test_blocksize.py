@@ -33,7 +33,7 @@ def sorted_csr(A):
 
 def found(A, start=0) -> list:
     """The candidate block sizes whose nodes block these rows."""
-    return [b for b, ok in zip(CANDIDATES, detect(A.indptr, A.indices, start)) if ok]
+    return [b for b, count in zip(CANDIDATES, detect(A.indptr, A.indices, start)) if count > 0]
 
 
 def test_elasticity_patterns_are_blocked_and_scalar_ones_are_not():
@@ -56,6 +56,16 @@ def test_a_rank_may_start_inside_a_node_and_a_block_need_not_store_its_zeros():
         dropped = B.copy()
         dropped.eliminate_zeros()
         assert dropped.nnz < B.nnz and found(dropped) == [b]
+
+
+def test_too_few_rows_tell_nothing():
+    """A rank with no whole node to check (one row, none, a partial node) answers 0 nodes checked, not a block
+    size; the block size then needs MIN_NODES nodes over all ranks."""
+    A = sorted_csr(linear_elasticity((30, 30))[0])
+    for rows, start in ((A[5:6], 5), (A[:0], 0), (A[1:2], 1)):
+        rows = sorted_csr(rows)
+        assert all(count in (0, -1) for count in detect(rows.indptr, rows.indices, start))
+        assert found(rows, start) == []
 
 
 def test_aggregates_keep_nodes_whole_across_a_cut_node():

@@ -26,57 +26,60 @@ from .csr import row_entries
 CANDIDATES = (6, 4, 3, 2)   # block sizes tried, the largest first (shells, 2-D plates, 3-D and 2-D elasticity)
 SAMPLE_ROWS = 1024          # rows whose nodes are checked
 FIRST_ROWS = 64             # ... of them first (a scalar pattern fails at nearly every node)
+MIN_NODES = 8               # nodes checked over all ranks below which no block size is taken (a few rows tell nothing)
 MAX_BLOCK = 64              # the largest -htp_block_size
 
 
 def _distinct(values) -> np.ndarray:
     """The distinct ``values``, sorted (a sort and a mask: numpy's hashing unique took 3 ms on 20 000 values)."""
     values = np.sort(values)
-    return values[np.r_[True, values[1:] != values[:-1]]]
+    return values[np.r_[True, values[1:] != values[:-1]]] if values.size else values
 
 
-def blocked(indptr, indices, start, b, rows) -> bool:
-    """Whether the whole nodes of ``rows`` (local row numbers; nodes of ``b`` rows by global row, the first local
-    row global row ``start``, partial nodes at either end skipped) of the CSR rows ``indptr``/``indices`` (global
-    columns) each couple whole column nodes: the union of a node's rows' columns is a union of nodes of ``b``
-    columns (a block's zeros need not be stored)."""
+def blocked(indptr, indices, start, b, rows) -> int:
+    """How many whole nodes of ``rows`` (local row numbers; nodes of ``b`` rows by global row, the first local row
+    global row ``start``, partial nodes at either end skipped) of the CSR rows ``indptr``/``indices`` (global
+    columns) were checked, where each couples whole column nodes (the union of a node's rows' columns is a union of
+    nodes of ``b`` columns; a block's zeros need not be stored), else -1."""
     n = indptr.size - 1
     lo = (-start) % b                                                 # the first whole node's first row
     nodes = _distinct((rows[rows >= lo] - lo) // b)
     nodes = nodes[lo + (nodes + 1) * b <= n]
     where, owner = row_entries(indptr, (lo + nodes[:, None] * b + np.arange(b)).ravel())
     if where.size == 0:
-        return True
+        return nodes.size
     cols = indices[where].astype(np.int64)
     width = int(cols.max()) + b
     key = _distinct((owner // b) * np.int64(width) + cols)           # each node's columns, sorted, once
     node, cols = np.divmod(key, width)
     runs = np.flatnonzero(np.r_[True, (node[1:] != node[:-1]) | (cols[1:] // b != cols[:-1] // b)])
-    return bool(np.all(np.diff(np.r_[runs, key.size]) == b))       # each run of one column node holds it whole
+    whole = np.all(np.diff(np.r_[runs, key.size]) == b)              # each run of one column node holds it whole
+    return nodes.size if whole else -1
 
 
 def detect(indptr, indices, start) -> tuple:
-    """Flags (one per :data:`CANDIDATES`): whether the nodes of :data:`SAMPLE_ROWS` rows spread over this rank's
-    rows are blocked by each (:func:`blocked`), :data:`FIRST_ROWS` of them first (a scalar pattern fails there)."""
+    """Per :data:`CANDIDATES`, how many nodes of :data:`SAMPLE_ROWS` rows spread over this rank's rows were found
+    blocked by it (:func:`blocked`; -1: not blocked), :data:`FIRST_ROWS` of them first (a scalar pattern fails
+    there)."""
     n = indptr.size - 1
     few, many = (np.arange(0, n, max(1, n // k)) for k in (FIRST_ROWS, SAMPLE_ROWS))
-    return tuple(blocked(indptr, indices, start, b, few) and blocked(indptr, indices, start, b, many)
+    return tuple(-1 if blocked(indptr, indices, start, b, few) < 0 else blocked(indptr, indices, start, b, many)
                  for b in CANDIDATES)
 
 
 def block_size(mat, rows, coll, option=0) -> tuple:
     """(block size, where it comes from) for the two-level method: ``option`` where set (1 to :data:`MAX_BLOCK`),
-    else the Mat's where above 1, else the largest of :data:`CANDIDATES` that blocks every rank's rows (collective),
-    else 1."""
+    else the Mat's where above 1, else the largest of :data:`CANDIDATES` that blocks every rank's sampled rows, at
+    least :data:`MIN_NODES` nodes checked in all (collective), else 1."""
     if option > MAX_BLOCK:
         raise ValueError(f"-htp_block_size {option} is more unknowns per node than {MAX_BLOCK}")
     if option >= 1:
         return option, "from -htp_block_size"
     if mat.getBlockSize() > 1:
         return mat.getBlockSize(), "the Mat's"
-    flags = np.array(detect(rows.indptr, rows.indices, mat.getOwnershipRange()[0]), dtype=np.int64)
-    agreed = coll.min_array(flags)
-    for b, ok in zip(CANDIDATES, agreed):
-        if ok:
+    counts = np.array(detect(rows.indptr, rows.indices, mat.getOwnershipRange()[0]), dtype=np.int64)
+    total = coll.sum_array(np.concatenate([counts < 0, np.maximum(counts, 0)]).astype(np.int64))
+    for b, failed, checked in zip(CANDIDATES, total[:len(CANDIDATES)], total[len(CANDIDATES):]):
+        if not failed and checked >= MIN_NODES:
             return b, "found in the pattern"
     return 1, ""
