@@ -44,6 +44,10 @@ def test_elasticity_patterns_are_blocked_and_scalar_ones_are_not():
     for A in (poisson((40, 40)), poisson((12, 12, 12)), CASES["dmda2d"](4096, 0)[0], CASES["fem_tri"](4096, 0)[0],
               CASES["fem_hex"](4096, 0)[0]):
         assert found(sorted_csr(A)) == []
+    line = sp.diags([1.0, -4.0, 6.0, -4.0, 1.0], [-2, -1, 0, 1, 2], (128, 128))
+    wide = sp.kron(line, sp.identity(128)) + sp.kron(sp.identity(128), line)   # reach 2 and 2 nx: whole nodes of 2
+    for A in (wide, line, sp.identity(600)):                   # ... also shifted by a row: not a system's nodes
+        assert found(sorted_csr(A)) == []
 
 
 def test_a_rank_may_start_inside_a_node_and_a_block_need_not_store_its_zeros():

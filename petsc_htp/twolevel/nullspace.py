@@ -99,6 +99,8 @@ def _connected(indptr, indices, n) -> tuple:
 
 def graph_components(A) -> tuple:
     """(number, label of each row) of the connected components of a square scipy CSR matrix's nonzero entries."""
+    if A.shape[0] != A.shape[1]:
+        raise ValueError(f"connected components need a square matrix, got shape {A.shape}")
     graph = A
     if not np.all(A.data != 0):
         graph = A.copy()
