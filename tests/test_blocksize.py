@@ -33,7 +33,7 @@ def sorted_csr(A):
 
 def found(A, start=0) -> list:
     """The candidate block sizes whose nodes block these rows."""
-    return [b for b, count in zip(CANDIDATES, detect(A.indptr, A.indices, start)) if count > 0]
+    return [b for b, count in zip(CANDIDATES, detect(A.indptr, A.indices, start)[0]) if count > 0]
 
 
 def test_elasticity_patterns_are_blocked_and_scalar_ones_are_not():
@@ -68,8 +68,23 @@ def test_too_few_rows_tell_nothing():
     A = sorted_csr(linear_elasticity((30, 30))[0])
     for rows, start in ((A[5:6], 5), (A[:0], 0), (A[1:2], 1)):
         rows = sorted_csr(rows)
-        assert all(count in (0, -1) for count in detect(rows.indptr, rows.indices, start))
+        assert all(count in (0, -1) for count in detect(rows.indptr, rows.indices, start)[0])
         assert found(rows, start) == []
+
+
+def test_the_largest_nodes_whose_blocks_hang_together():
+    """Nodes of 2, 4 and 6 all block a block-diagonal matrix of 2 x 2 blocks, but a node of 4 or 6 is then two or
+    three uncoupled blocks: 2 is taken. Nodes of 6 coupled inside (a Laplacian of 6 x 6 blocks) take 6."""
+    from petsc_htp.collective import Collective
+    from petsc_htp.twolevel.blocksize import block_size
+
+    for A, b in ((sp.block_diag([np.array([[2.0, -1.0], [-1.0, 2.0]])] * 600), 2),
+                 (sp.kron(poisson((20, 20)), np.ones((6, 6))) + sp.identity(2400), 6)):
+        A = sorted_csr(A)
+        mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                  A.data))
+        assert block_size(mat, A, Collective(mat.getComm())) == (b, "found in the pattern")
+        mat.destroy()
 
 
 def test_aggregates_keep_nodes_whole_across_a_cut_node():

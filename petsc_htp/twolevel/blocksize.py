@@ -10,9 +10,10 @@ couplings inside a block are stored (PyAMG's elasticity stores 28 % of its entri
 arithmetic drops them). A scalar stencil's is not: a row couples its neighbour in the previous node alone.
 
 The nodes of :data:`SAMPLE_ROWS` rows spread over each rank's rows are checked (1-3 ms on scalar matrices at 64k
-rows, 4.5 ms on 2-D elasticity at 80 000 and 22 on 3-D at 45 000; all of 80 000 rows took 56-74 ms); where they are blocked by ``b`` on every rank (:data:`CANDIDATES`, the largest such),
-the two-level method takes ``b`` as the block size: leaves of whole nodes and each component's constant
-(:mod:`.nearnull`). A pattern blocked only where sampled (a few scalar rows among the nodes) gets nodes too: any
+rows, 3.3 ms on 2-D elasticity at 80 000 and 17 on 3-D at 45 000; all of 80 000 rows took 56-74 ms); where they
+are blocked by ``b`` on every rank (:data:`CANDIDATES`; of several, the largest whose nodes hang together:
+:func:`block_size`), the two-level method takes ``b`` as the block size: leaves of whole nodes and each component's
+constant (:mod:`.nearnull`). A pattern blocked only where sampled (a few scalar rows among the nodes) gets nodes too: any
 partition into nodes gives leaves and coarse vectors of a valid preconditioner, so a wrong guess costs iterations,
 never the answer. A rank's rows may start or end inside a node (PETSc's split of 9 800 rows over 3 ranks): such a
 partial node is not checked. ``-htp_block_size`` overrides it all.
@@ -59,15 +60,36 @@ def passing(indptr, indices, start, b, rows, shift=0) -> np.ndarray:
     return ok
 
 
+def joined(indptr, indices, start, b, rows) -> int:
+    """How many whole nodes of ``rows`` (as :func:`passing` takes them) have a connected diagonal block: its ``b``
+    rows joined by their entries inside the node (a 6-row node of three uncoupled 2 x 2 blocks is not)."""
+    n = indptr.size - 1
+    lo = (-start) % b
+    nodes = _distinct((rows[rows >= lo] - lo) // b)
+    nodes = nodes[lo + (nodes + 1) * b <= n]
+    first = lo + nodes * b                                            # each node's first local row
+    where, owner = row_entries(indptr, (first[:, None] + np.arange(b)).ravel())
+    node, r = owner // b, owner % b
+    c = indices[where].astype(np.int64) - (start + first[node])      # the column within the node
+    inside = (c >= 0) & (c < b)
+    reach = np.zeros((nodes.size, b, b), dtype=bool)
+    reach[node[inside], r[inside], c[inside]] = True
+    reach |= reach.transpose(0, 2, 1) | np.eye(b, dtype=bool)
+    for _ in range(3):                                               # paths of up to 8 >= b steps
+        reach = np.einsum("kij,kjl->kil", reach.astype(np.int8), reach.astype(np.int8)) > 0
+    return int(np.count_nonzero(reach[:, 0, :].all(axis=1)))
+
+
 def detect(indptr, indices, start) -> tuple:
     """Per :data:`CANDIDATES`, how many nodes of :data:`SAMPLE_ROWS` rows spread over this rank's rows were found
     blocked by it (:func:`passing`; -1: not blocked), :data:`FIRST_ROWS` of them first (a scalar pattern fails
-    there). A scalar stencil whose reach is a multiple of ``b`` (a 13-point biharmonic stencil's 2 and 2 nx, a
-    diagonal matrix) also couples whole nodes, but as well with its nodes shifted by one row, which a system's
-    nodes do not: where more than :data:`SHIFTED_MAX` of the shifted nodes pass too, not blocked."""
+    there), then how many of those have a connected diagonal block (:func:`joined`). A scalar stencil whose reach
+    is a multiple of ``b`` (a 13-point biharmonic stencil's 2 and 2 nx, a diagonal matrix) also couples whole
+    nodes, but as well with its nodes shifted by one row, which a system's nodes do not: where more than
+    :data:`SHIFTED_MAX` of the shifted nodes pass too, not blocked."""
     n = indptr.size - 1
     few, many = (np.arange(0, n, max(1, n // k)) for k in (FIRST_ROWS, SAMPLE_ROWS))
-    counts = []
+    counts, joins = [], []
     for b in CANDIDATES:
         ok = passing(indptr, indices, start, b, few)
         if ok.all():
@@ -76,22 +98,29 @@ def detect(indptr, indices, start) -> tuple:
             shifted = passing(indptr, indices, start, b, many, shift=1)
             ok = ok if shifted.size == 0 or shifted.mean() <= SHIFTED_MAX else np.zeros(1, dtype=bool)
         counts.append(ok.size if ok.all() else -1)
-    return tuple(counts)
+        joins.append(joined(indptr, indices, start, b, many) if ok.all() else 0)
+    return tuple(counts), tuple(joins)
 
 
 def block_size(mat, rows, coll, option=0) -> tuple:
     """(block size, where it comes from) for the two-level method: ``option`` where set (1 to :data:`MAX_BLOCK`),
-    else the Mat's where above 1, else the largest of :data:`CANDIDATES` that blocks every rank's sampled rows, at
-    least :data:`MIN_NODES` nodes checked in all (collective), else 1."""
+    else the Mat's where above 1, else of :data:`CANDIDATES` that block every rank's sampled rows, at least
+    :data:`MIN_NODES` nodes checked in all (collective), the largest whose nodes' diagonal blocks are mostly
+    connected, or failing that the smallest (nodes of a larger candidate made of uncoupled smaller ones, as in a
+    block-diagonal matrix of 2 x 2 blocks, which nodes of 2, 4 and 6 all block), else 1."""
     if option > MAX_BLOCK:
         raise ValueError(f"-htp_block_size {option} is more unknowns per node than {MAX_BLOCK}")
     if option >= 1:
         return option, "from -htp_block_size"
     if mat.getBlockSize() > 1:
         return mat.getBlockSize(), "the Mat's"
-    counts = np.array(detect(rows.indptr, rows.indices, mat.getOwnershipRange()[0]), dtype=np.int64)
-    total = coll.sum_array(np.concatenate([counts < 0, np.maximum(counts, 0)]).astype(np.int64))
-    for b, failed, checked in zip(CANDIDATES, total[:len(CANDIDATES)], total[len(CANDIDATES):]):
-        if not failed and checked >= MIN_NODES:
+    start = mat.getOwnershipRange()[0]
+    counts, joins = (np.array(v, dtype=np.int64) for v in detect(rows.indptr, rows.indices, start))
+    k = len(CANDIDATES)
+    total = coll.sum_array(np.concatenate([counts < 0, np.maximum(counts, 0), joins]).astype(np.int64))
+    found = [(b, joined / checked) for b, failed, checked, joined
+             in zip(CANDIDATES, total[:k], total[k:2 * k], total[2 * k:]) if not failed and checked >= MIN_NODES]
+    for b, share in found:
+        if share >= 0.5:
             return b, "found in the pattern"
-    return 1, ""
+    return (found[-1][0], "found in the pattern") if found else (1, "")
