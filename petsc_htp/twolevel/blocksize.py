@@ -38,15 +38,20 @@ def _distinct(values) -> np.ndarray:
     return values[np.r_[True, values[1:] != values[:-1]]] if values.size else values
 
 
+def _nodes(n, start, b, rows, shift=0) -> tuple:
+    """(first local row of the first whole node, the whole nodes of local ``rows`` numbered from it) of ``n`` local
+    rows whose first is global row ``start``, in nodes of ``b`` rows by global row + ``shift``."""
+    lo = (-(start + shift)) % b
+    nodes = _distinct((rows[rows >= lo] - lo) // b)
+    return lo, nodes[lo + (nodes + 1) * b <= n]
+
+
 def passing(indptr, indices, start, b, rows, shift=0) -> np.ndarray:
     """For each whole node of ``rows`` (local row numbers; nodes of ``b`` rows by global row + ``shift``, the first
     local row global row ``start``, partial nodes at either end skipped) of the CSR rows ``indptr``/``indices``
     (global columns), whether it couples whole column nodes (columns + ``shift``): whether the union of its rows'
     columns is a union of nodes of ``b`` columns (a block's zeros need not be stored)."""
-    n = indptr.size - 1
-    lo = (-(start + shift)) % b                                       # the first whole node's first row
-    nodes = _distinct((rows[rows >= lo] - lo) // b)
-    nodes = nodes[lo + (nodes + 1) * b <= n]
+    lo, nodes = _nodes(indptr.size - 1, start, b, rows, shift)
     ok = np.ones(nodes.size, dtype=bool)
     where, owner = row_entries(indptr, (lo + nodes[:, None] * b + np.arange(b)).ravel())
     if where.size == 0:
@@ -63,10 +68,7 @@ def passing(indptr, indices, start, b, rows, shift=0) -> np.ndarray:
 def joined(indptr, indices, start, b, rows) -> int:
     """How many whole nodes of ``rows`` (as :func:`passing` takes them) have a connected diagonal block: its ``b``
     rows joined by their entries inside the node (a 6-row node of three uncoupled 2 x 2 blocks is not)."""
-    n = indptr.size - 1
-    lo = (-start) % b
-    nodes = _distinct((rows[rows >= lo] - lo) // b)
-    nodes = nodes[lo + (nodes + 1) * b <= n]
+    lo, nodes = _nodes(indptr.size - 1, start, b, rows)
     first = lo + nodes * b                                            # each node's first local row
     where, owner = row_entries(indptr, (first[:, None] + np.arange(b)).ravel())
     node, r = owner // b, owner % b
