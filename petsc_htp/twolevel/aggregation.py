@@ -157,12 +157,10 @@ def nodes(n, bs, offset=0) -> np.ndarray:
 
 def node_graph(A, node) -> sp.csr_matrix:
     """The graph of ``A``'s nodes (``node``: each row's, :func:`nodes`): the Frobenius norm of every node block
-    (PyAMG's amalgamation for block matrices, as P^T (A o A) P with scipy's compiled products)."""
-    n, count = A.shape[0], int(node[-1]) + 1 if node.size else 0
-    P = sp.csr_matrix((np.ones(n), node, np.arange(n + 1)), shape=(n, count))
-    G = (P.T.tocsr() @ sp.csr_matrix((np.square(A.data), A.indices, A.indptr), shape=A.shape) @ P).tocsr()
+    (PyAMG's amalgamation for block matrices: :func:`_graph` of A's squared entries, then the root)."""
+    G = _graph(sp.csr_matrix((np.square(A.data), A.indices, A.indptr), shape=A.shape), node,
+               int(node[-1]) + 1 if node.size else 0)
     G.data = np.sqrt(G.data)
-    G.sort_indices()
     return G
 
 

@@ -13,10 +13,10 @@ The nodes of :data:`SAMPLE_ROWS` rows spread over each rank's rows are checked (
 rows, 3.3 ms on 2-D elasticity at 80 000 and 17 on 3-D at 45 000; all of 80 000 rows took 56-74 ms); where they
 are blocked by ``b`` on every rank (:data:`CANDIDATES`; of several, the largest whose nodes hang together:
 :func:`block_size`), the two-level method takes ``b`` as the block size: leaves of whole nodes and each component's
-constant (:mod:`.nearnull`). A pattern blocked only where sampled (a few scalar rows among the nodes) gets nodes too: any
-partition into nodes gives leaves and coarse vectors of a valid preconditioner, so a wrong guess costs iterations,
-never the answer. A rank's rows may start or end inside a node (PETSc's split of 9 800 rows over 3 ranks): such a
-partial node is not checked. ``-htp_block_size`` overrides it all.
+constant (:mod:`.nearnull`). A pattern blocked only where sampled (a few scalar rows among the nodes) gets nodes
+too: any partition into nodes gives leaves and coarse vectors of a valid preconditioner, so a wrong guess costs
+iterations, never the answer. A rank's rows may start or end inside a node (PETSc's split of 9 800 rows over 3
+ranks): such a partial node is not checked. ``-htp_block_size`` overrides it all.
 """
 from __future__ import annotations
 
@@ -91,17 +91,22 @@ def detect(indptr, indices, start) -> tuple:
     :data:`SHIFTED_MAX` of the shifted nodes pass too, not blocked."""
     n = indptr.size - 1
     few, many = (np.arange(0, n, max(1, n // k)) for k in (FIRST_ROWS, SAMPLE_ROWS))
-    counts, joins = [], []
-    for b in CANDIDATES:
-        ok = passing(indptr, indices, start, b, few)
-        if ok.all():
-            ok = passing(indptr, indices, start, b, many)
-        if ok.all():
-            shifted = passing(indptr, indices, start, b, many, shift=1)
-            ok = ok if shifted.size == 0 or shifted.mean() <= SHIFTED_MAX else np.zeros(1, dtype=bool)
-        counts.append(ok.size if ok.all() else -1)
-        joins.append(joined(indptr, indices, start, b, many) if ok.all() else 0)
-    return tuple(counts), tuple(joins)
+    counts = tuple(_blocked(indptr, indices, start, b, few, many) for b in CANDIDATES)
+    joins = tuple(joined(indptr, indices, start, b, many) if count >= 0 else 0
+                  for b, count in zip(CANDIDATES, counts))
+    return counts, joins
+
+
+def _blocked(indptr, indices, start, b, few, many) -> int:
+    """How many nodes of the rows ``many`` :func:`passing` found blocked by ``b``, after those of ``few``, and not
+    also shifted by one row (more than :data:`SHIFTED_MAX` of them); -1 where not blocked."""
+    if not passing(indptr, indices, start, b, few).all():
+        return -1
+    ok = passing(indptr, indices, start, b, many)
+    if not ok.all():
+        return -1
+    shifted = passing(indptr, indices, start, b, many, shift=1)
+    return -1 if shifted.size and shifted.mean() > SHIFTED_MAX else ok.size
 
 
 def block_size(mat, rows, coll, option=0) -> tuple:

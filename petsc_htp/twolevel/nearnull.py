@@ -3,8 +3,9 @@
 PETSc programs say what their operator's smooth modes are as GAMG reads them: a near null space attached to the
 Mat (``MatSetNearNullSpace``, such as the rigid-body modes of ``MatNullSpaceCreateRigidBody``), or else a block
 size, whose components each have their own constant (the Mat's, or one its pattern shows: :mod:`.blocksize`).
-The two-level method keeps each piece's constant and adds these vectors, restricted to every leaf and made orthonormal there (:func:`.coarsespace.basis`), so that
-an elasticity operator's coarse space holds its translations and rotations. A scalar matrix with neither has
+The two-level method keeps each piece's constant and adds these vectors, restricted to every leaf and made
+orthonormal there (:func:`.coarsespace.basis`), so that an elasticity operator's coarse space holds its translations
+and rotations. A scalar matrix with neither has
 none: the piece constants are its near null space.
 """
 from __future__ import annotations
