@@ -32,9 +32,10 @@ def check_size(mat) -> None:
         raise MatrixError("HTPPC got an empty matrix (0 x 0)")
 
 
-def check_matrix(mat, rows) -> None:
+def check_matrix(mat, rows, empty_ok=False) -> None:
     """Raise :class:`MatrixError` on every rank when any rank's ``rows`` (its rows of ``mat``, scipy CSR with
-    global columns) show a problem of :data:`PROBLEMS` (collective; after :func:`check_size`)."""
+    global columns) show a problem of :data:`PROBLEMS`, a rank without rows only where not ``empty_ok`` (collective;
+    after :func:`check_size`)."""
     n_rows, n_cols = mat.getSize()
     start = mat.getOwnershipRange()[0]
     n = rows.shape[0]
@@ -43,7 +44,7 @@ def check_matrix(mat, rows) -> None:
     diag.destroy()
     finite = np.isfinite(rows.data)
     none = np.zeros(0, dtype=np.int64)
-    bad = [none if n else np.array([0]),                                     # local row numbers
+    bad = [none if n or empty_ok else np.array([0]),                         # local row numbers
            none if finite.all() else np.unique(np.repeat(np.arange(n), np.diff(rows.indptr))[~finite]),
            np.flatnonzero(np.diff(rows.indptr) == 0),
            np.flatnonzero(d == 0),

@@ -26,6 +26,9 @@ from __future__ import annotations
 
 from importlib import import_module
 
+import numpy as np
+
+from .collective import Collective
 from .twolevel.config import Config
 
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
@@ -93,21 +96,23 @@ class TwoLevel:
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
     def direct(self, mat, A, coords):
-        """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``), or None: one rank, no
-        two-level option set, and :func:`sizing.whole_factor` by the problem, or with ``-htp_direct_max n`` >= 0
-        Cholesky up to n rows."""
+        """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
+        every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
+        or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
+        (collective)."""
         from .twolevel import sizing
-        from .twolevel.graphshape import graph_shape
 
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
-        n = mat.getSize()[0]
-        if mat.getComm().getSize() > 1 or not plain:
+        n, coll = mat.getSize()[0], Collective(mat.getComm())
+        if coll.size > 1 and coll.any(A.shape[0] == 0):
+            return self._empty_rank(n, coll, A)
+        if not plain:
             return None
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
-        per_row = A.nnz / max(n, 1)
+        per_row = coll.sum(A.nnz) / max(n, 1)
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             return None
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
@@ -115,17 +120,43 @@ class TwoLevel:
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
             return "icc"                                                  # the same in any dimension
-        shape = graph_shape(A, want_weak=False, samples=8) if coords is None else None
-        dim = sizing.dimension(None if coords is None else coords.shape[1], shape)
-        return sizing.whole_factor(dim, n, per_row, coords is None)
+        dim = coords.shape[1] if coords is not None else self._dimension(mat, A, coll)
+        return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
+
+    @staticmethod
+    def _dimension(mat, A, coll) -> int:
+        """What this rank's diagonal block of the graph shows (:mod:`.twolevel.graphshape`): 2 or 3."""
+        from .petscmat import diagonal_block
+        from .twolevel.graphshape import graph_shape
+
+        if coll.size == 1:
+            return graph_shape(A, want_weak=False, samples=8).dim
+        with diagonal_block(mat, A) as block:
+            return graph_shape(block, want_weak=False, samples=8).dim
+
+    @staticmethod
+    def _empty_rank(n, coll, A):
+        """A matrix with a rank that owns no rows, which the two-level method cannot take: whatever the options, up to
+        :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank (Cholesky where rows hold at
+        most ``RICH_ROW`` stored entries on average, else ICC(0)), above a named error."""
+        from .twolevel import sizing
+        from .validation import MatrixError
+
+        if n <= sizing.REDUNDANT_MAX:
+            return "cholesky" if coll.sum(A.nnz) <= sizing.RICH_ROW * n else "icc"
+        raise MatrixError(f"the matrix has a rank without rows ({n} rows on {coll.size} ranks); HTPPC's two-level "
+                          f"method needs rows on every rank (up to {sizing.REDUNDANT_MAX} rows one factor of the whole "
+                          "matrix serves instead): give every rank rows, or take PCTELESCOPE around HTPPC")
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,
-        :mod:`.twolevel.spacereuse`; a DirectPC has none)."""
+        :mod:`.twolevel.spacereuse`; a DirectPC has none), but for the piece constants alone, which the auto policy
+        makes anew (:attr:`.twolevel.space.CoarseSpace.renewed`)."""
         from .twolevel.spacereuse import keeps
 
-        space = getattr(previous, "space", None)
-        keep = space is not None and keeps(self.opts.coarse_space_every, space.age, previous.its)
+        every, space = self.opts.coarse_space_every, getattr(previous, "space", None)
+        keep = (space is not None and not (every == 0 and space.renewed)
+                and keeps(every, space.age, previous.its))
         analysis.numeric(A, density, keep_space=keep)
         return analysis
 

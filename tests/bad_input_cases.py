@@ -58,6 +58,8 @@ def solve(mat, b, opts=(), ksp=None):
     db = PETSc.Options()
     base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 500,
             "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"}
+    if COMM.getSize() > 1:          # the two-level method: these matrices would be factored whole on every rank
+        base["htp_direct_max"] = 0  # (a rank that owns no rows still gets that factor)
     x, bv = mat.createVecRight(), rhs(mat, b)
     x.set(0.0)
     try:
@@ -192,8 +194,26 @@ def case_empty_matrix():
 
 
 def case_rank_without_rows():
+    """Every row on the first rank: on several ranks one factor of the whole matrix, gathered on every rank."""
     rows_on = [N] + [0] * (COMM.getSize() - 1)
     return outcome(dist(BASE.A, regions(BASE.A), rows_on=rows_on), BASE.b)[0]
+
+
+def case_rank_without_rows_large():
+    """A 2-D Laplacian of 9 216 rows (more than one gathered factor serves) on the first rank alone."""
+    side = 96
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    A = sp.kronsum(T, T).tocsr()
+    rows_on = [A.shape[0]] + [0] * (COMM.getSize() - 1)
+    return outcome(dist(A, rows_on=rows_on), np.ones(A.shape[0]))[0]
+
+
+def case_fewer_rows_than_ranks():
+    """One row per rank but the last, which owns none (a 1 x 1 matrix on two ranks)."""
+    size = max(COMM.getSize() - 1, 1)
+    A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (size, size)).tocsr()
+    rows_on = [1] * size + [0] * (COMM.getSize() - size)
+    return outcome(dist(A, rows_on=rows_on), np.ones(size))[0]
 
 
 def case_explicit_zeros():
@@ -237,6 +257,22 @@ def case_values_only():
     _, ksp = outcome(mat, BASE.b)
     mat.scale(3.0)
     return outcome(mat, BASE.b, ksp=ksp)[0]
+
+
+def case_rescaled_values():
+    """New values D A D (D random in 0.5 .. 2) twice on one KSP, a new coarse space each time: the row-scaled piece
+    vectors |diag|^-1/2, so W's values change (on two ranks W^T A W once kept the old ones: 400 iterations)."""
+    side = 32
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    mat = dist(sp.kronsum(T, T))
+    b, opts = np.ones(side * side), {"htp_coarse_space_every": 1}
+    _, ksp = outcome(mat, b, opts)
+    rng = np.random.default_rng(5)
+    for _ in range(2):
+        d = rhs(mat, rng.uniform(0.5, 2.0, side * side))
+        mat.diagonalScale(d, d)
+        result = outcome(mat, b, opts, ksp=ksp)[0]
+    return result
 
 
 def case_missing_checkpoint():

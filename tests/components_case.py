@@ -45,6 +45,7 @@ def main():
     ksp.setTolerances(rtol=1e-10)
     pc = ksp.getPC()
     pc.setType("python")
+    PETSc.Options().setValue("htp_direct_max", 0)       # the two-level analysis, not the small matrix's factor
     ctx = petsc_htp.HTPPC()
     pc.setPythonContext(ctx)
     b, x = mat.createVecs()

@@ -19,11 +19,18 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
-from .inner import configured_pc
+from .inner import configured_pc, scoped
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
                    "pc_factor_shift_type": "positive_definite"}}
+
+
+def factor_options(kind: str, ranks: int) -> dict:
+    """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
+    matrix on every rank (a rank that owns no rows included) and factors it there."""
+    opts = FACTORS[kind]
+    return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if ranks > 1 else dict(opts)
 
 
 class DirectPC:
@@ -32,9 +39,9 @@ class DirectPC:
     Parameters
     ----------
     mat : petsc4py.PETSc.Mat
-        A sequential AIJ operator.
+        An AIJ operator; on several ranks factored whole on every rank (:func:`factor_options`).
     rows : scipy.sparse.csr_matrix
-        Its rows (the analysed pattern).
+        This rank's rows (the analysed pattern).
     kind : str
         cholesky or icc (:data:`FACTORS`).
     prefix : str
@@ -44,8 +51,10 @@ class DirectPC:
     def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
-        self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
+        self.ranks = mat.getComm().getSize()
+        self.n_comp, self.comp_of_row = nullspace.graph_components(rows) if self.ranks == 1 else (0, None)
         self.G = self.pc = None
+        self.rest = {}
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
@@ -59,8 +68,35 @@ class DirectPC:
         return {"factor": self.pc}
 
     def numeric(self, rows, density=None, keep_space=False):
-        """Factor the new values (grounded where a component is null)."""
+        """Factor the new values (on one rank grounded where a component is null; on several the KSP's null space
+        and the factor's shift take a singular matrix)."""
         t0 = time.perf_counter()
+        target = self._grounded(rows) if self.ranks == 1 else self.mat
+        if self.pc is None:
+            factor = factor_options(self.kind, self.ranks)
+            self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
+            key = "pc_factor_mat_ordering_type"
+            self.ordering = PETSc.Options(self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key,
+                                                                 FACTORS[self.kind][key])
+        else:
+            self.pc.setOperators(target, target)
+        with scoped(self.prefix, self.rest):             # PCREDUNDANT's inner factor reads its defaults now
+            self.pc.setUp()
+            if self.ranks > 1:                           # ... and factors at its first apply: do that here
+                x, y = target.createVecs()
+                x.set(0.0)
+                self.pc.apply(x, y)
+                x.destroy()
+                y.destroy()
+        self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
+        if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
+            negative = self.pc.getFactorMatrix().getInertia()[0]
+            if negative:
+                raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
+                                 f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+
+    def _grounded(self, rows):
+        """The operator, or its copy with one diagonal entry of each null component raised (one rank)."""
         nsp = self.mat.getNullSpace()
         if nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
@@ -69,31 +105,17 @@ class DirectPC:
             null = nullspace.null_by_rowsums(np.asarray(rows.sum(axis=1)).ravel(), rows.diagonal(), self.comp_of_row,
                                              self.n_comp)
         self.null_components = int(null.sum())
-        target = self.mat
-        if null.any():
-            grounded = nullspace.first_rows(self.comp_of_row, null)
-            if self.G is None:
-                self.G = self.mat.duplicate(copy=True)
-            else:
-                self.mat.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-            for i, d in zip(grounded, rows.diagonal()[grounded]):
-                self.G.setValue(int(i), int(i), abs(d), addv=PETSc.InsertMode.ADD_VALUES)
-            self.G.assemble()
-            target = self.G
-        if self.pc is None:
-            factor = FACTORS[self.kind]
-            self.pc = configured_pc(PETSc.COMM_SELF, target, self.prefix, factor)[0]
-            self.ordering = PETSc.Options(self.prefix).getString("pc_factor_mat_ordering_type",
-                                                                 factor["pc_factor_mat_ordering_type"])
+        if not null.any():
+            return self.mat
+        grounded = nullspace.first_rows(self.comp_of_row, null)
+        if self.G is None:
+            self.G = self.mat.duplicate(copy=True)
         else:
-            self.pc.setOperators(target, target)
-        self.pc.setUp()
-        self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
-        if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
-            negative = self.pc.getFactorMatrix().getInertia()[0]
-            if negative:
-                raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
-                                 f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+            self.mat.copy(self.G, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        for i, d in zip(grounded, rows.diagonal()[grounded]):
+            self.G.setValue(int(i), int(i), abs(d), addv=PETSc.InsertMode.ADD_VALUES)
+        self.G.assemble()
+        return self.G
 
     def mult(self, x, y):
         """y = (grounded A)^-1 x."""
@@ -110,7 +132,10 @@ class DirectPC:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the factor."""
+        """Bytes of the factor (on several ranks: of the whole matrix's values, which every rank gathers and factors;
+        PCREDUNDANT does not show its factor)."""
+        if self.ranks > 1:
+            return int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
         return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> list:
@@ -118,12 +143,17 @@ class DirectPC:
         n = self.mat.getSize()[0]
         what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
                 "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
-        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest "
-                f"({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
-                f"options -{self.prefix}*)"
+        if self.ranks > 1:
+            where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
+                     f"{self.kind}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
+            memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
+        else:
+            where = (f"({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
+                     f"options -{self.prefix}*)")
+            memory = f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"
+        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest {where}"
                 + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),
-                f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}",
-                f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"]
+                f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}", memory]
 
     def destroy(self):
         """Free the factor and the grounded copy."""

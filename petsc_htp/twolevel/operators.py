@@ -61,7 +61,8 @@ class Pattern:
         self.mat.setBlockSizes(1, col_block)
 
     def set(self, values):
-        """New values, in the order of the entries given."""
+        """New values, in the order of the entries given; on several ranks the MPIAIJ is assembled again (collective):
+        with its state increased alone, a product's numeric reuse (PtAP) kept the old values."""
         if values.shape != (self.size,):
             raise ValueError(f"{values.size} values for a pattern of {self.size} entries")
         for src, held in self.parts:
@@ -69,7 +70,10 @@ class Pattern:
                 np.copyto(held, values)
             else:
                 np.take(values, src, out=held)
-        self.mat.stateIncrease()
+        if len(self.parts) > 1:
+            self.mat.assemble()
+        else:
+            self.mat.stateIncrease()
 
     def take(self, data, src) -> np.ndarray:
         """New values ``data[src]``, set and returned (on one rank, in CSR order already, the matrix's own array)."""

@@ -38,12 +38,21 @@ with its CG iterations costs less (the same sweep with ``cg_icc``: a third to a 
 1e10 already takes 198 ICC iterations, 47 against 36 ms). With coordinates attached, the project's multiphase
 frames, the two-level method stays ahead (25.6 against 44.9 ms per frame at 32^3 in sequence mode).
 
+On several ranks the same factor, of the whole matrix gathered on every rank (PCREDUNDANT), serves at the same
+sizes, and wherever a rank owns no rows (the two-level method needs rows on every rank) up to :data:`REDUNDANT_MAX`
+rows: ``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup`` with HTPPC as it comes (above 8 000 rows
+``-htp_direct_max 100000``) against ``-htp_direct_max 0``, KSPSetUp + KSPSolve ms, 2026-11-26, 2 runs each: 2-D
+(Cholesky) at 5 776 rows 24-26 against 33-125, 8 100 29-30 against 30-71, 12 100 33-105 against 35-37 (the
+two-level method ahead); 3-D (``-dim 3``: 7 entries a row, ICC(0), 43-72 iterations) at 1 728 to 8 000 rows 8-21
+against 25-115 ms.
+
 PETSc-free (the fast path imports it).
 """
 from __future__ import annotations
 
 DIRECT_MAX = {2: 8000, 3: 1000}    # rows up to which one sparse Cholesky factor of the whole matrix is cheapest
 WHOLE_ICC_MAX = {2: 8000, 3: 8000}  # bare matrices: rows up to which ICC(0) of the whole matrix beats the two-level
+REDUNDANT_MAX = 8000                # a rank without rows: matrix rows up to which it is factored whole on every rank
 RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
 POSITIVE_MAX = 0.05                 # 2-D: share of positive off-diagonal couplings up to which rich rows are paired
 LEAF = {2: 32, 3: 64}

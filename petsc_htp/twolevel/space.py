@@ -81,6 +81,13 @@ class CoarseSpace:
         self.null_components = int(null.sum())
         return st.my_pieces(ground)
 
+    @property
+    def renewed(self) -> bool:
+        """Whether the space is the piece constants alone (or their row-scaled vectors, :mod:`.scaling`): made anew
+        it costs about what keeping it does, and it follows a new row scaling (D A D handed over after A: 26 CG
+        iterations against a kept constant space's 134)."""
+        return self.flat and not self.st.seeded
+
     def compute(self, d_values, o_values, o_rows, seeds=None, near=None, weights=None):
         """New coarse vectors from D's values and the couplings ``o_values`` (rows ``o_rows``, leaves' order);
         ``seeds`` replaces the smooth seeds (learned space); ``near`` (n, fixed), the near null vectors in A's row

@@ -6,7 +6,9 @@ k >= 1 computes W at every k-th numeric setup. k = 0, the default, keeps W while
 :data:`AUTO_AGE` numeric setups, and only while the last solve took at most :data:`AUTO_GROWTH` times (plus
 :data:`AUTO_SLACK`) the iterations of the first solve with it, so values that moved away from W cost one frame's
 extra iterations before a new W. On the project's own frames in sequence mode W made one to three frames earlier
-served as well as a fresh one (``petsc-htp bench --studies sequence``, README).
+served as well as a fresh one (``petsc-htp bench --studies sequence``, README). The piece constants alone (the
+const space of paired aggregation leaves) are made anew at every step under k = 0: they cost about what keeping
+them does, and their row-scaled form follows new values that rescale the rows (:mod:`.scaling`).
 
 Leaves whose couplings moved (:meth:`.structure.Structure.moved`) are made anew only where that pays
 (:func:`keeps_leaves`): on the foreign study's sequences at 65 536 rows, whose coefficients move every frame,
