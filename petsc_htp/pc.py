@@ -70,7 +70,7 @@ class HTPPC(Inspection):
         self.opts, self.variant, self.analysis, self.setup = HTPOptions(), None, None, None
         self.analysis_count = self.numeric_count = 0
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
-        self.n = self.inv_diag = self._pattern = self._values = self._coords = self._guess = None
+        self.n = self.inv_diag = self._pattern = self._values = self._coords = self._changed = None
         self._started = 0.0                              # when the last KSPSolve began (preSolve)
         self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
@@ -205,21 +205,30 @@ class HTPPC(Inspection):
         self.apply(pc, x, y)
 
     def preSolve(self, pc, ksp, b, x):
-        """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0)."""
-        self._guess, self._started = None, time.perf_counter()
+        """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
+        raised before its postSolve kept are given back first."""
+        self._give_back(ksp)
+        self._started = time.perf_counter()
         if self.setup is not None and not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
                      or amat.handle != pmat.handle)      # M made from a Pmat other than the solved Amat
-            self._guess = self.variant.presolve(self.setup, ksp, b, x, stale)
+            self._changed = self.variant.presolve(self.setup, ksp, b, x, stale)
 
     def postSolve(self, pc, ksp, b, x):
-        """After each KSPSolve: tell the variant its iterations; give the KSP back its initial-guess flag."""
+        """After each KSPSolve: tell the variant its iterations; give the KSP back the settings its start changed
+        (initial-guess flag, divergence tolerance)."""
         if self.setup is not None and not self.fallback_active:
             self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
-        if self._guess is not None:
-            ksp.setInitialGuessNonzero(self._guess)
-            self._guess = None
+        self._give_back(ksp)
+
+    def _give_back(self, ksp):
+        """Give the KSP back the settings the last start changed (initial-guess flag, divergence tolerance)."""
+        changed, self._changed = self._changed or {}, None
+        if "guess" in changed:
+            ksp.setInitialGuessNonzero(changed["guess"])
+        if "divtol" in changed:
+            ksp.setTolerances(divtol=changed["divtol"])
 
     def _free(self):
         """Free the analysis and its setups (PETSc objects included)."""

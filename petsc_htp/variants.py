@@ -10,8 +10,8 @@ options prefix, with
   analysis, whose buffers it may reuse;
 - ``apply(setup, x, y)``: y = M x on PETSc Vecs;
 - ``presolve(setup, ksp, b, x, stale)``: called before each KSPSolve (``stale``: the setup is reused on
-  an operator whose values changed since); returns the KSP's initial-guess flag when it changed it
-  (restored after the solve), else None;
+  an operator whose values changed since); returns the KSP settings it changed ({'guess': the initial-guess flag,
+  'divtol': the divergence tolerance}, given back after the solve), else None;
 - ``solved(setup, its)``: called after each KSPSolve with its iterations;
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
   the couplings, once the couplings moved);
@@ -186,7 +186,7 @@ class TwoLevel:
 
     @staticmethod
     def presolve(setup, ksp, b, x, stale):
-        """The deflated form's start (x0 += Q r0); returns the KSP's guess flag to restore, or None."""
+        """The deflated form's start (x0 += Q r0); returns the KSP settings to give back after the solve, or None."""
         return setup.presolve(ksp, b, x, stale)
 
     @staticmethod

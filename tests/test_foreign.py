@@ -117,6 +117,19 @@ def test_graph_shape_follows_nonzeros_only_and_finds_rare_coupled_rows():
     assert shape.dim == 2 and not np.isnan(shape.growth), shape.describe()
 
 
+def test_a_chain_is_told_by_its_balls_and_its_rows():
+    """sizing.chain: a 1-D Laplacian's balls grow as r (exponent below LINEAR_GROWTH) and its rows hold 3 entries;
+    the rows of a 2-D grid in a random order break a rank's block into pieces whose balls barely grow either, but
+    their rows hold 5: not a chain (its coarse LU would fill)."""
+    n = 20000
+    chain = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (n, n)).tocsr()
+    shape = graph_shape(chain)
+    assert shape.growth < sizing.LINEAR_GROWTH and sizing.chain(shape.growth, chain.nnz / n)
+    grid, _ = foreign.dmda(2, 100)
+    assert not sizing.chain(graph_shape(sp.csr_matrix(grid)).growth, grid.nnz / grid.shape[0])
+    assert not sizing.chain(0.72, 5.0) and not sizing.chain(np.inf, 3.0)
+
+
 def test_every_ball_search_gives_the_same_balls():
     """The breadth-first search, the sparse products and the shortest paths grow the same balls, stored zeros
     coupling nothing (the search is picked by cost only)."""

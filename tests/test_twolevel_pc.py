@@ -394,6 +394,19 @@ def test_the_piece_constants_are_made_anew_and_follow_a_new_row_scaling():
     assert ctx.setup.space.age == 0 and ctx.setup.space.weights is not None and ctx.numeric_count == 2
 
 
+def test_a_start_whose_residual_passes_b_is_not_divergence():
+    """D A D with D in 1e-3 .. 1e3 (unknowns in mixed units): the deflated start's residual is about 2e4 ||b||, which
+    PETSc's divergence test (1e4 ||b|| at iteration 0) took for divergence before the first iteration; the test is
+    now relative to the start's residual for the solve, and the KSP gets its own tolerance back."""
+    side = 100
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    d = 10.0 ** np.random.default_rng(7).uniform(-3, 3, side * side)
+    A = sp.diags(d) @ sp.kronsum(T, T) @ sp.diags(d)
+    reason, its, relres, ksp = solve(petsc_mat(A, null=False), np.random.default_rng(8).standard_normal(side * side))
+    assert reason > 0 and relres <= 1.01e-8 and its <= 80, (reason_name(reason), its, relres)
+    assert ksp.getTolerances()[2] == 1e4
+
+
 def test_overlapping_leaves_grow_by_layers_and_converge(frames):
     """-htp_overlap k grows every leaf by k layers of its neighbours (restricted additive Schwarz leaves): each
     layer adds rows, and CG still reaches its rtol in the true residual."""

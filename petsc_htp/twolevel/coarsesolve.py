@@ -37,7 +37,7 @@ class CoarseSolve:
     def __init__(self, st, solver, prefix):
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
         self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size,
-                                                                           st.leaves.kind, st.fixed)
+                                                                           st.leaves.kind, st.fixed, st.linear)
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind, near=st.fixed)   # else balanced (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
@@ -149,7 +149,8 @@ class CoarseSolve:
             st = self.st
             limit = sizing.direct_limit(st.dim, st.coll.size, st.leaves.kind, st.fixed)
             several = " on several ranks" if st.dim == 2 and st.coll.size > 1 else ""
-            why = f" (by the problem: {st.m} rows; direct up to {limit}{several} in {st.dim}-D)"
+            why = (f" (by the problem: {st.m} rows; direct at any size on a chain, whose LU does not fill)"
+                   if st.linear else f" (by the problem: {st.m} rows; direct up to {limit}{several} in {st.dim}-D)")
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
                   else "")

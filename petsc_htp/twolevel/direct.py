@@ -1,15 +1,17 @@
 """A small matrix's preconditioner: one factor of the whole matrix, exact (sparse Cholesky, one iteration) or
 incomplete (ICC(0)).
 
-Below the sizes of :func:`petsc_htp.twolevel.sizing.whole_factor` on one rank, a factor of the whole matrix costs
-less than building leaves, a coarse space and their products (sizing's docstring has the measurement). A
-singular matrix (an
-attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal entry of
-each null component is raised by its own magnitude, so the factor exists and is exact on vectors orthogonal to
-the component's constant, which is what a KSP with the null space attached hands over. The Cholesky factor's
-inertia checks that the matrix is positive (semi)definite: negative pivots are an error that says so. ICC(0)'s
-shift keeps its pivots positive, so there an indefinite matrix is named by the KSP (CG stops with
-DIVERGED_INDEFINITE_MAT or _PC), as on several ranks.
+Below the sizes of :func:`petsc_htp.twolevel.sizing.whole_factor`, a factor of the whole matrix costs less than
+building leaves, a coarse space and their products (sizing's docstring has the measurement). On one rank a singular
+matrix (an attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal
+entry of each null component is raised by its own magnitude, so the factor exists and is exact on vectors
+orthogonal to the component's constant, which is what a KSP with the null space attached hands over; and the
+Cholesky factor's inertia checks that the matrix is positive (semi)definite: negative pivots are an error that says
+so. ICC(0)'s shift keeps its pivots positive, so there an indefinite matrix is named by the KSP (CG stops with
+DIVERGED_INDEFINITE_MAT or _PC). On several ranks PCREDUNDANT gathers the whole matrix on every rank and factors it
+there (also where a rank owns no rows); its factor's shift takes a singular matrix whose null space the KSP
+removes, and its inertia is not at hand (PCREDUNDANT does not show its factor): an exact factor solves an
+indefinite matrix as well, in one iteration.
 """
 from __future__ import annotations
 
@@ -75,6 +77,8 @@ class DirectPC:
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
             self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
+            if self.ranks > 1 and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is the leaf solver's: the
+                self.pc.setType("redundant")                          # gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"
             self.ordering = PETSc.Options(self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key,
                                                                  FACTORS[self.kind][key])
@@ -148,10 +152,10 @@ class DirectPC:
                      f"{self.kind}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
             memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
         else:
-            where = (f"({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
+            where = (f" ({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
                      f"options -{self.prefix}*)")
             memory = f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"
-        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest {where}"
+        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest{where}"
                 + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),
                 f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}", memory]
 

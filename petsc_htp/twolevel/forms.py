@@ -130,8 +130,13 @@ class Forms:
         ops.W.multAdd(cs.c2, v, y)                             # y = s + W (c1 - c2)
 
     def presolve(self, ksp, b, x, stale=False):
-        """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP's initial-guess flag when
-        this changed it, else None. Under 'auto' the solve takes the balanced form when the KSP is not one of
+        """Start the deflated form on W^T r0 = 0: x0 += Q (b - A x0). Returns the KSP settings this changed, to give
+        back after the solve ({'guess': its initial-guess flag, 'divtol': its divergence tolerance}), else None. The
+        start minimises the error's energy, not the residual: where a KSP that tests the unpreconditioned norm sees
+        the start grow the residual (a row scaling far from constant, a long chain), its divergence tolerance grows
+        alike for the solve, as PETSc's test at iteration 0 compares with ||b|| (D A D, D in 1e-3 .. 1e3: 2.2e4
+        ||b||, DIVERGED_DTOL before the first iteration; CG then converges in 42; the preconditioned norms barely
+        grow). Under 'auto' the solve takes the balanced form when the KSP is not one of
         :data:`DEFLATED_KSPS` (PREONLY included: an outer method applies M), the preconditioner is ``stale`` (reused
         on new values, or made from a Pmat other than the KSP's Amat: D B = I no longer holds for A; the deflated
         start then left a Pmat + 0.3 diag solve at a residual of 1e5 and a Pmat + 0.01 diag CG solve stalled), the
@@ -156,12 +161,22 @@ class Forms:
         nsp = ksp.getOperators()[0].getTransposeNullSpace()
         if nsp:                       # KSPSolve projects b only after this call: start on the projected residual
             nsp.remove(t)
+        before = t.norm()
         self.ops.W.multTranspose(t, cs.g)
         self._coarse(cs.g, cs.c)
         self.ops.W.multAdd(cs.c, x, x)
         ksp.setInitialGuessNonzero(True)
         self.started = True
-        return nonzero
+        changed, divtol = {"guess": nonzero}, ksp.getTolerances()[2]
+        if ksp.getNormType() == PETSc.KSP.NormType.UNPRECONDITIONED and divtol > 0 and before > 0:
+            self.ops.W.mult(cs.c, self.v)
+            self.v.scale(-1.0)
+            self.mat.multAdd(self.v, t, t)                     # r0 = r - A W c
+            grown = t.norm() / before
+            if grown > 1.0:
+                changed["divtol"] = divtol
+                ksp.setTolerances(divtol=divtol * grown)
+        return changed
 
     def min_rayleigh(self, probes) -> float:
         """Smallest x^T M x / x^T x of the balanced (symmetric) M over ``probes`` random x (collective)."""

@@ -75,6 +75,8 @@ COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plai
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
 COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
 COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows from which GAMG serves
+LINEAR_GROWTH = 1.25                        # ball growth exponent below which a graph is a chain (chain) ...
+CHAIN_ROW = 3.5                             # ... whose rows hold at most this many stored entries on average
 
 
 def coarse_space(dim, near, paired=False) -> str:
@@ -112,6 +114,14 @@ def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False)
     return "pairs" if paired else "standard"
 
 
+def chain(growth: float, per_row: float) -> bool:
+    """Whether a graph is a chain (a 1-D Laplacian's): its balls grow slower than :data:`LINEAR_GROWTH` (the largest
+    ``growth`` over the ranks' diagonal blocks) and its rows hold at most :data:`CHAIN_ROW` stored entries. The
+    growth alone is no proof: a rank's diagonal block of rows in a random order breaks into small pieces, whose
+    balls barely grow (a shuffled 2-D grid on two ranks: 0.7-1.2)."""
+    return bool(growth < LINEAR_GROWTH and per_row <= CHAIN_ROW)
+
+
 def dimension(coords_dim, shape) -> int:
     """2 or 3: the attached coordinates' dimension, else what the graph showed (``shape``: a
     :class:`~petsc_htp.twolevel.graphshape.GraphShape`)."""
@@ -146,7 +156,8 @@ def leaf_factor(dim: int, kind: str) -> dict:
     return dict(EXACT_FACTOR if kind == "aggregation" else FACTOR[dim])
 
 
-def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> str:
+def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
+                  linear: bool = False) -> str:
     """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
@@ -168,8 +179,12 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     analysis there), so for aggregation leaves without near null vectors the LU serves up to
     :data:`COARSE_SCALAR_DIRECT_MAX` rows on one rank. An operator with ``near`` > 0 near null
     vectors of its own keeps the LU on several ranks too: GAMG's V-cycle does not know the coarse operator's near
-    null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations)."""
-    return "lu" if rows <= direct_limit(dim, ranks, kind, near) else "gamg"
+    null space (2-D elasticity, 320k rows on 2 ranks, ``examples/elasticity.py -side 400``: 204-208 iterations).
+    A ``linear`` graph (a chain, :func:`chain`) keeps the LU at any size: its
+    coarse operator is a chain too, whose LU does not fill, and whose conditioning (1e9 at 16 000 coarse rows) the
+    V-cycles did not meet: a 1-D Laplacian of 100 000 rows on 2 ranks ran to 5 000 iterations and one of
+    1 000 000 on one rank to 1 000 (``DIVERGED_ITS``), against 6 each with the LU (1.7 s at 1M, GAMG 3.6)."""
+    return "lu" if linear or rows <= direct_limit(dim, ranks, kind, near) else "gamg"
 
 
 def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> int:
@@ -213,7 +228,7 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
 
 
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
-                  block: int = 2) -> bool:
+                  block: int = 2, linear: bool = False) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
     it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows whose
     leaves take ``block`` > 1 columns per piece, or :data:`COARSE_METIS_SCALAR_ROWS` rows of one column per piece
@@ -221,8 +236,8 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
     (``examples/dmda_poisson.py -n N -warmup``, 3 runs each, setup + solve ms against that ordering: 512^2, 23 000
     coarse rows, METIS 769-807 against 742-825; 768^2, 52 000, 1 872-2 070 against 1 997-2 044; 1024^2, 92 000,
     3 734-3 762 against 3 804-3 837, an LU of 6.1 against 8.3 million values)."""
-    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near) == "lu")
-    return lu and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near, linear) == "lu")
+    return lu and not linear and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False,

@@ -71,6 +71,8 @@ class Structure:
         self.fixed, self.attached = nearnull.count(mat, self.bs), nearnull.attached(mat)
         self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
+        growth = np.inf if self.shape is None or np.isnan(self.shape.growth) else self.shape.growth
+        self.linear = sizing.chain(coll.max_array(np.array([growth]))[0], self.per_row)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
         self.cfg = cfg = self.resolved(cfg, coords is None)
@@ -203,7 +205,7 @@ class Structure:
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
         self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind,
-                                            self.fixed, lead + 1)
+                                            self.fixed, lead + 1, self.linear)
         order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
