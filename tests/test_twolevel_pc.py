@@ -394,6 +394,30 @@ def test_the_piece_constants_are_made_anew_and_follow_a_new_row_scaling():
     assert ctx.setup.space.age == 0 and ctx.setup.space.weights is not None and ctx.numeric_count == 2
 
 
+def test_a_kept_coarse_space_is_made_anew_where_new_values_rescale_the_rows():
+    """The eig space is kept through a common factor (A -> 3 A) but made anew where new values rescale the rows
+    (D A D, D random in 0.5 .. 2: spacereuse.DiagonalWatch), so that solve takes a new KSP's iterations (30; the
+    kept space took 64)."""
+    side = 64
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    mat = petsc_mat(sp.kronsum(T, T), null=False)
+    b = np.random.default_rng(3).standard_normal(side * side)
+    reason, first, _, ksp = solve(mat, b, htp_aggregation="standard")          # the eig space
+    ctx = ksp.getPC().getPythonContext()
+    rhs, x = mat.createVecs()
+    rhs.setArray(b)
+    mat.scale(3.0)
+    ksp.solve(rhs, x)
+    assert reason > 0 and not ctx.setup.space.renewed and ctx.setup.space.age == 1
+    d = mat.createVecLeft()
+    d.setArray(np.random.default_rng(4).uniform(0.5, 2.0, side * side))
+    mat.diagonalScale(d, d)
+    ksp.solve(rhs, x)
+    _, fresh, _, _ = solve(mat, b, htp_aggregation="standard")                 # a new KSP on the rescaled rows
+    assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= fresh + 1, (first, fresh, ksp.its)
+    assert ctx.setup.space.age == 0 and ctx.numeric_count == 3
+
+
 def test_a_start_whose_residual_passes_b_is_not_divergence():
     """D A D with D in 1e-3 .. 1e3 (unknowns in mixed units): the deflated start's residual is about 2e4 ||b||, which
     PETSc's divergence test (1e4 ||b|| at iteration 0) took for divergence before the first iteration; the test is

@@ -108,7 +108,7 @@ class TwoLevelPC:
             np.take(data, lay.d_src, out=self.d_values)
             if ground.any():
                 nullspace.ground(self.d_values, lay.d_diag, nullspace.first_rows(lay.pieces.label, ground))
-            new_space = not (keep_space and self.space.kept is not None)
+            new_space = not (keep_space and self.space.kept is not None and not self.space.watch.rescaled(self.d_values))
             if not (new_space and self.space.shared):        # else the space borrows the factor first
                 self.leafsolver.numeric(data)
         with phase("HTPCoarseSpace", T, "coarse_space"):

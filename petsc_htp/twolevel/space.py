@@ -19,6 +19,7 @@ from petsc4py import PETSc
 from . import coarsespace, nullspace
 from .csr import row_sums
 from .leafsolvers import seqaij
+from .spacereuse import DiagonalWatch
 
 
 class CoarseSpace:
@@ -38,6 +39,7 @@ class CoarseSpace:
         self.st, self.values = st, np.zeros(st.w_p.size)
         self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
         self.weights = None                  # the flat space's piece vectors where they are not the constants
+        self.watch = DiagonalWatch(lay.d_diag, st.coll)                   # W's row scaling
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
         if self.flat:
             self.lead_mask = st.w_j < st.lead
@@ -97,6 +99,7 @@ class CoarseSpace:
         lay = self.st.lay
         near = None if near is None else near[lay.perm]
         self.weights = None if weights is None else weights[lay.perm]
+        self.watch.made(d_values)
         if not self.st.seeded:
             return self._fill(None, None, near)
         outside = np.bincount(o_rows, o_values, minlength=lay.n)     # one inverse-iteration step with S
