@@ -46,6 +46,15 @@ from .variants import variant_class
 __all__ = ["HTPPC", "attach"]
 
 
+def give_back(ksp, changed) -> None:
+    """Give ``ksp`` back the settings a start ``changed`` (initial-guess flag, divergence tolerance); returns None."""
+    changed = changed or {}
+    if "guess" in changed:
+        ksp.setInitialGuessNonzero(changed["guess"])
+    if "divtol" in changed:
+        ksp.setTolerances(divtol=changed["divtol"])
+
+
 class HTPPC(Inspection):
     """petsc4py ``PCPYTHON`` context applying an HTP preconditioner.
 
@@ -207,8 +216,7 @@ class HTPPC(Inspection):
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
         raised before its postSolve kept are given back first."""
-        self._give_back(ksp)
-        self._started = time.perf_counter()
+        self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
         if self.setup is not None and not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
@@ -220,15 +228,7 @@ class HTPPC(Inspection):
         (initial-guess flag, divergence tolerance)."""
         if self.setup is not None and not self.fallback_active:
             self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
-        self._give_back(ksp)
-
-    def _give_back(self, ksp):
-        """Give the KSP back the settings the last start changed (initial-guess flag, divergence tolerance)."""
-        changed, self._changed = self._changed or {}, None
-        if "guess" in changed:
-            ksp.setInitialGuessNonzero(changed["guess"])
-        if "divtol" in changed:
-            ksp.setTolerances(divtol=changed["divtol"])
+        self._changed = give_back(ksp, self._changed)
 
     def _free(self):
         """Free the analysis and its setups (PETSc objects included)."""

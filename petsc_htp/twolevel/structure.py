@@ -28,6 +28,11 @@ WEAK_ROWS = 8192        # rows of D whose couplings inside the leaves are counte
 # rows, a sample of every k-th coupling (131 072 at most) still 4 ms
 
 
+def _growth(shape) -> float:
+    """The graph's ball growth exponent, inf where not measured (coordinates attached, too few coupled rows)."""
+    return np.inf if shape is None or np.isnan(shape.growth) else shape.growth
+
+
 class Structure:
     """The analysis of one pattern (see the module docstring).
 
@@ -71,8 +76,7 @@ class Structure:
         self.fixed, self.attached = nearnull.count(mat, self.bs), nearnull.attached(mat)
         self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
-        growth = np.inf if self.shape is None or np.isnan(self.shape.growth) else self.shape.growth
-        self.linear = sizing.chain(coll.max_array(np.array([growth]))[0], self.per_row)
+        self.linear = sizing.chain(coll.max_array(np.array([_growth(self.shape)]))[0], self.per_row)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
         self.cfg = cfg = self.resolved(cfg, coords is None)
