@@ -262,7 +262,7 @@ def case_values_only():
 
 def case_rescaled_values():
     """New values D A D (D random in 0.5 .. 2) twice on one KSP, a new coarse space each time: the row-scaled piece
-    vectors |diag|^-1/2, so W's values change (on two ranks W^T A W once kept the old ones: 400 iterations)."""
+    vectors |diag|^-1/2, so W's values change (on two ranks W^T A W once kept the old ones: DIVERGED_ITS)."""
     side = 32
     T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
     mat = dist(sp.kronsum(T, T))
