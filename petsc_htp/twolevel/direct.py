@@ -56,7 +56,7 @@ class DirectPC:
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = nullspace.graph_components(rows) if self.ranks == 1 else (0, None)
         self.G = self.pc = None
-        self.rest = {}
+        self.rest, self.gathered = {}, 0
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
@@ -93,6 +93,8 @@ class DirectPC:
                 x.destroy()
                 y.destroy()
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
+        if self.ranks > 1:                               # the gathered values' bytes, read here (collective)
+            self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
         if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
             negative = self.pc.getFactorMatrix().getInertia()[0]
             if negative:
@@ -139,7 +141,7 @@ class DirectPC:
         """Bytes of the factor (on several ranks: of the whole matrix's values, which every rank gathers and factors;
         PCREDUNDANT does not show its factor)."""
         if self.ranks > 1:
-            return int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
+            return self.gathered
         return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> list:
