@@ -150,13 +150,11 @@ class TwoLevel:
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,
-        :mod:`.twolevel.spacereuse`; a DirectPC has none), but for the piece constants alone, which the auto policy
-        makes anew (:attr:`.twolevel.space.CoarseSpace.renewed`)."""
+        :mod:`.twolevel.spacereuse`; a DirectPC has none)."""
         from .twolevel.spacereuse import keeps
 
-        every, space = self.opts.coarse_space_every, getattr(previous, "space", None)
-        keep = (space is not None and not (every == 0 and space.renewed)
-                and keeps(every, space.age, previous.its))
+        space = getattr(previous, "space", None)
+        keep = space is not None and keeps(self.opts.coarse_space_every, space.age, previous.its, space.renewed)
         analysis.numeric(A, density, keep_space=keep)
         return analysis
 

@@ -65,11 +65,7 @@ class CoarseSolve:
         self.E = ops.E
         if inner.multigrid(self.pc):
             self._near_null(ops)
-        with inner.scoped(self.prefix, self.rest):      # PCREDUNDANT's inner solver reads its defaults now
-            self.pc.setUp()
-            if self.pc.getType() == "redundant":         # it factors at its first apply: do that here
-                self.g.set(0.0)
-                self.pc.apply(self.g, self.c)
+        inner.set_up(self.pc, self.prefix, self.rest)
         if self.direct:
             self._refinement()
 

@@ -21,7 +21,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
-from .inner import configured_pc, scoped
+from .inner import configured_pc, set_up
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
@@ -84,14 +84,7 @@ class DirectPC:
                                                                  FACTORS[self.kind][key])
         else:
             self.pc.setOperators(target, target)
-        with scoped(self.prefix, self.rest):             # PCREDUNDANT's inner factor reads its defaults now
-            self.pc.setUp()
-            if self.ranks > 1:                           # ... and factors at its first apply: do that here
-                x, y = target.createVecs()
-                x.set(0.0)
-                self.pc.apply(x, y)
-                x.destroy()
-                y.destroy()
+        set_up(self.pc, self.prefix, self.rest)
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
         if self.ranks > 1:                               # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])

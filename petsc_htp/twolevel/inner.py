@@ -34,6 +34,19 @@ def scoped(prefix, defaults):
             db.delValue(name)
 
 
+def set_up(pc, prefix, rest):
+    """Set ``pc`` up with the defaults its set-up still has to find (``rest``, :func:`configured_pc`) under
+    ``prefix``; PCREDUNDANT, whose inner solver reads them then, factors at its first apply: that is done here."""
+    with scoped(prefix, rest):
+        pc.setUp()
+        if pc.getType() == "redundant":
+            x, y = pc.getOperators()[0].createVecs()
+            x.set(0.0)
+            pc.apply(x, y)
+            x.destroy()
+            y.destroy()
+
+
 def through_api(pc, defaults) -> dict:
     """Set on ``pc`` the ``defaults`` its API can set; returns the others."""
     rest = dict(defaults)

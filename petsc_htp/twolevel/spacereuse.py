@@ -27,13 +27,13 @@ RESCALED = 0.05         # median deviation of log(new / old |diagonal|) from its
 WATCHED = 4096          # diagonal entries per rank that watch for a new row scaling
 
 
-def keeps(every: int, age: int, its: list) -> bool:
+def keeps(every: int, age: int, its: list, renewed: bool = False) -> bool:
     """Whether the next numeric setup keeps a coarse space made ``age`` numeric setups ago under
     ``-htp_coarse_space_every every``, after solves since it was made that took ``its`` iterations (the first and the
-    last)."""
+    last); under k = 0 never a ``renewed`` one (the piece constants alone: :attr:`.space.CoarseSpace.renewed`)."""
     if every > 0:
         return age + 1 < every
-    return bool(its) and age + 1 < AUTO_AGE and its[-1] <= AUTO_GROWTH * its[0] + AUTO_SLACK
+    return not renewed and bool(its) and age + 1 < AUTO_AGE and its[-1] <= AUTO_GROWTH * its[0] + AUTO_SLACK
 
 
 def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float, penalty=None) -> bool:
