@@ -36,6 +36,7 @@ from petsc4py import PETSc
 from .checks import check_message
 from .collective import Collective
 from .events import event
+from .partition import crossing
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .validation import check_matrix, check_size, check_symmetry
@@ -79,7 +80,7 @@ class HTPPC(Inspection):
         self.opts, self.variant, self.analysis, self.setup = HTPOptions(), None, None, None
         self.analysis_count = self.numeric_count = 0
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
-        self.n = self.inv_diag = self._pattern = self._values = self._coords = self._changed = None
+        self.n = self.inv_diag = self._pattern = self._values = self._coords = self._changed = self.cut = None
         self._started = 0.0                              # when the last KSPSolve began (preSolve)
         self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
@@ -170,6 +171,7 @@ class HTPPC(Inspection):
             self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
             self._pattern = pattern
             self.analysis_count += 1
+            self.cut = crossing(P, A, coll)
         else:
             self.variant.opts = opts
             t0 = time.perf_counter()

@@ -6,6 +6,7 @@ import sys
 
 from petsc4py import PETSc
 
+from .partition import describe as describe_split
 from .twolevel.inner import view as view_inner
 
 
@@ -21,7 +22,7 @@ def lines(ctx) -> list:
         out.append(f"  model: {ctx.variant.model}")
     if ctx.setup is None:
         return out
-    out += ["  " + line for line in ctx.setup.describe()]
+    out += ["  " + line for line in ctx.setup.describe() + describe_split(ctx.cut)]
     which = "BLAS, OpenMP" + (" and torch" if "torch" in sys.modules else "")
     threads = f"; {which} threads: {ctx.opts.threads}" + (f" ({ctx.threads_note})" if ctx.threads_note else "")
     out.append(f"  setups: {ctx.analysis_count} analyses (pattern), {ctx.numeric_count} numeric (values)" + threads)

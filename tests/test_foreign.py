@@ -405,12 +405,14 @@ def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
         assert ("coarse columns in METIS's nested-dissection order" in proc.stdout) == metis, proc.stdout
         assert ("LU on each of the 2 ranks (redundant)" in proc.stdout) == (ranks == 2), proc.stdout
         assert f"second pass {'standard' if metis else 'pairs'}" in proc.stdout, proc.stdout
+        assert ("ranks: 2; 0." in proc.stdout) == (ranks == 2) and "WARNING" not in proc.stdout, proc.stdout  # strips
 
 
 def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
     """examples/matrix_file.py, PETSc's ex10 pattern: a foreign-study case (P1 triangles, nodes at random) written to a
     PETSc binary file on two ranks and loaded again with MatLoad; HTPPC by options alone solves both the same way, and
-    the no-flux case gets the constant null space attached."""
+    the no-flux case gets the constant null space attached. The nodes' random numbering cuts half the couplings
+    between the ranks: -ksp_view says so, with advice (:mod:`petsc_htp.partition`)."""
     path = tmp_path / "tri.petsc"
     script = EXAMPLE.parent / "matrix_file.py"
     flags = (*HTPPC_FLAGS, "-htp_direct_max", "0")        # the two-level method (not the gathered ICC(0))
@@ -423,6 +425,8 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
         its = int(proc.stdout.split("iterations:")[1].split()[0])
         relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
         assert its <= 40 and relres <= 1.01e-8, proc.stdout
+        assert "of the off-diagonal couplings join rows of two ranks" in proc.stdout, proc.stdout
+        assert "WARNING: leaves hold one rank's rows, so a split that cuts this many" in proc.stdout, proc.stdout
         found.append(its)
     assert found[0] == found[1]
     proc = _mpirun(2, script, "-case", "neumann", "-n", "4096", *HTPPC_FLAGS)
@@ -512,3 +516,16 @@ def test_amg_coarse_solve_of_3d_aggregation_leaves_is_two_v_cycles_deflated_or_o
     assert "coarse solve: one GAMG V-cycle" in text and "form: balanced" in text, text
     _, deflated_its, _, _, _ = solve(A, b, htp_form="deflated", **one)
     assert deflated_its > one_its, (deflated_its, one_its)
+
+
+def test_the_partition_line_warns_where_the_split_cuts_many_couplings():
+    """-ksp_view's partition line (:mod:`petsc_htp.partition`): none on one rank, the shares on several, and advice
+    above CUT_ADVICE only."""
+    from petsc_htp.partition import CUT_ADVICE, describe
+
+    assert describe(None) == []
+    good, = describe((2, 0.002, 0.003))
+    assert good.startswith("ranks: 2; 0.2% of the off-diagonal couplings") and "at most 0.3%" in good
+    assert "WARNING" not in good
+    bad, = describe((4, CUT_ADVICE + 0.01, 0.5))
+    assert "ranks: 4; 21.0%" in bad and "WARNING: leaves hold one rank's rows" in bad and "at most 50.0%" in bad

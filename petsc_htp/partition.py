@@ -1,0 +1,46 @@
+"""How a parallel operator's rows are split over the ranks: the share of its couplings that join rows of two ranks,
+shown by ``-ksp_view`` with advice where the split cuts too many.
+
+HTPPC's leaves, like PETSc's block Jacobi blocks, hold rows of one rank: a split that cuts many
+couplings (rows numbered at random, a mesh generator's order, MatLoad's contiguous blocks of such an order) leaves
+each rank's rows loosely coupled to each other, and the method takes more iterations than on one rank. Measured
+(``examples/matrix_file.py -case NAME -n 65536``, CG to rtol 1e-8, 2026-11-26): on 2 ranks a bare DMDA 2-D matrix, split
+in strips, cuts 0.2 % of the off-diagonal couplings (33 iterations as on one rank); the foreign study's P1 triangles
+and tetrahedra, whose nodes come numbered at random, 49.9 % (39 iterations against 34 on one rank, and 57 against
+40; GAMG 12 and 21 on either). A randomly weighted graph Laplacian in a random order took 269 iterations on 2 ranks
+against 40 on one (GAMG 174-186).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+CUT_ADVICE = 0.2    # share of cut couplings above which -ksp_view advises a better split (a 3-D block of 25^3 rows
+# per rank, a good split of 16 000 rows per rank, cuts about 4 %; rows at random over p ranks cut 1 - 1/p)
+
+
+def crossing(mat, rows, coll):
+    """None on one rank, else (ranks, share over all ranks, the largest share of one rank) of the nonzero
+    off-diagonal entries of ``mat`` whose column belongs to another rank; ``rows``: this rank's rows (CSR, global
+    columns), ``coll`` a :class:`~petsc_htp.collective.Collective` on ``mat``'s communicator (collective)."""
+    if coll.size < 2:
+        return None
+    start, end = mat.getOwnershipRange()
+    nonzero = rows.data != 0
+    cut = int(np.count_nonzero(nonzero & ((rows.indices < start) | (rows.indices >= end))))
+    off = int(np.count_nonzero(nonzero)) - int(np.count_nonzero(rows.diagonal(k=start)))
+    worst = coll.max_array(np.array([cut / off if off else 0.0]))[0]
+    total = coll.sum(off)
+    return coll.size, (coll.sum(cut) / total if total else 0.0), float(worst)
+
+
+def describe(cut) -> list:
+    """``-ksp_view``'s partition line for :func:`crossing`'s ``cut`` (none on one rank)."""
+    if cut is None:
+        return []
+    ranks, share, worst = cut
+    line = (f"ranks: {ranks}; {100 * share:.1f}% of the off-diagonal couplings join rows of two ranks (at most "
+            f"{100 * worst:.1f}% of one rank's)")
+    if share > CUT_ADVICE:
+        line += ("; WARNING: leaves hold one rank's rows, so a split that cuts this many couplings costs iterations; "
+                 "number the rows so that each rank holds rows coupled to each other (a graph partitioner's order)")
+    return [line]
