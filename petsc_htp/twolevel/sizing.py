@@ -69,7 +69,11 @@ COARSE_SCALAR_DIRECT_MAX = 131072           # ... one rank, 2-D aggregation leav
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_REDUNDANT_LU_MAX = 200000            # ... for Morton leaves and near null vectors, which keep the LU longer
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggressive_coarsening": "0",
-                 "mg_levels_ksp_max_it": "3", "pc_mg_multiplicative_cycles": "2"}   # two V-cycles, deflated form
+                 "mg_levels_ksp_max_it": "2", "pc_mg_multiplicative_cycles": "2"}   # two V-cycles, deflated form
+# Chebyshev(2) on each level (PETSc's default; three served the one V-cycle of the balanced form before): the DMDA
+# program's CG iterations stay (2 ranks: 1024^2 37, 2048^2 39, 512^2 36 against 35; one rank 2048^2 40) and the
+# solve takes 0.86-0.93 of Chebyshev(3)'s at 1024^2 and 2048^2, as much at 512^2 (results/scale-20261126g);
+# Chebyshev(1) took 42 iterations at 2048^2
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
