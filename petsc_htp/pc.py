@@ -36,7 +36,7 @@ from petsc4py import PETSc
 from .checks import check_message
 from .collective import Collective
 from .events import event
-from .partition import crossing
+from .ranksplit import crossing
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .validation import check_matrix, check_size, check_symmetry
@@ -159,19 +159,19 @@ class HTPPC(Inspection):
                 self._threads(opts)
             variant.opts = opts
             analysis = variant.analyse(P, A, coords)
-            t0 = time.perf_counter()
-            try:
+            try:            # the row split's cut where leaves stay within a rank (not a whole-matrix factor's)
+                cut = None if getattr(analysis, "whole", False) else crossing(P, A, coll, nonzero)
+                t0 = time.perf_counter()
                 setup = variant.numeric(analysis, P, A, density, None)
             except Exception:
                 variant.destroy(analysis)
                 raise
             self._free()
-            self.variant, self.analysis, self.setup = variant, analysis, setup
+            self.variant, self.analysis, self.setup, self.cut = variant, analysis, setup, cut
             self._coords = None if coords is None else coords.copy()
             self._csr = (A.indptr.copy(), A.indices.copy(), nonzero)
             self._pattern = pattern
             self.analysis_count += 1
-            self.cut = crossing(P, A, coll)
         else:
             self.variant.opts = opts
             t0 = time.perf_counter()

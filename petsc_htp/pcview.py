@@ -6,7 +6,7 @@ import sys
 
 from petsc4py import PETSc
 
-from .partition import describe as describe_split
+from .ranksplit import describe as describe_split
 from .twolevel.inner import view as view_inner
 
 

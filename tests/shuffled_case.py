@@ -2,7 +2,8 @@
 blocks as PETSc does, so most rows are coupled to the other rank and many stand alone in their rank's block (leaves
 of such rows hold one piece, with a coarse column, per row). HTPPC converges, and W's pattern gives each row its own
 piece's column only: the coarse operator keeps the few entries per row of the matrix it coarsens (each row of W
-holding the whole leaf's columns made it about 80 per row and its LU take seconds); prints 'shuffled ok'."""
+holding the whole leaf's columns made it about 80 per row and its LU take seconds), and -ksp_view's lines warn that
+the split cuts half the couplings; prints 'shuffled ok'."""
 import sys
 
 import petsc4py
@@ -13,6 +14,7 @@ import scipy.sparse as sp  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from petsc_htp.onesolve import timed_solve  # noqa: E402
+from petsc_htp.pcview import lines  # noqa: E402
 from petsc_htp.petscmat import local_csr, preallocated_aij  # noqa: E402
 
 SIDE = 96
@@ -51,6 +53,8 @@ def main():
     E = ctx.setup.ops.E
     per_row = E.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"] / E.getSize()[0]
     lone = "1-64 per leaf" in "\n".join(ctx.setup.describe())
+    view = "\n".join(lines(ctx))            # rows at random: half the couplings cross the ranks (petsc_htp.ranksplit)
+    assert "of the off-diagonal couplings join rows of two ranks" in view and "WARNING: leaves hold one" in view, view
     PETSc.Sys.Print(f"iterations {its} relres {relres:.2e} coarse rows {E.getSize()[0]} "
                     f"entries per coarse row {per_row:.1f} lone-row leaves {lone}", comm=comm)
     assert reason > 0 and its <= 40 and relres <= 1e-8

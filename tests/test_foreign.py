@@ -412,7 +412,7 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
     """examples/matrix_file.py, PETSc's ex10 pattern: a foreign-study case (P1 triangles, nodes at random) written to a
     PETSc binary file on two ranks and loaded again with MatLoad; HTPPC by options alone solves both the same way, and
     the no-flux case gets the constant null space attached. The nodes' random numbering cuts half the couplings
-    between the ranks: -ksp_view says so, with advice (:mod:`petsc_htp.partition`)."""
+    between the ranks: -ksp_view says so, with advice (:mod:`petsc_htp.ranksplit`)."""
     path = tmp_path / "tri.petsc"
     script = EXAMPLE.parent / "matrix_file.py"
     flags = (*HTPPC_FLAGS, "-htp_direct_max", "0")        # the two-level method (not the gathered ICC(0))
@@ -429,6 +429,9 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
         assert "WARNING: leaves hold one rank's rows, so a split that cuts this many" in proc.stdout, proc.stdout
         found.append(its)
     assert found[0] == found[1]
+    small = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS)    # the gathered factor: no leaves
+    assert small.returncode == 0 and "gathered and factored on each of the 2 ranks" in small.stdout, small.stdout
+    assert "join rows of two ranks" not in small.stdout, small.stdout
     proc = _mpirun(2, script, "-case", "neumann", "-n", "4096", *HTPPC_FLAGS)
     assert proc.returncode == 0 and "constant null space attached" in proc.stdout, proc.stdout + proc.stderr
 
@@ -519,9 +522,9 @@ def test_amg_coarse_solve_of_3d_aggregation_leaves_is_two_v_cycles_deflated_or_o
 
 
 def test_the_partition_line_warns_where_the_split_cuts_many_couplings():
-    """-ksp_view's partition line (:mod:`petsc_htp.partition`): none on one rank, the shares on several, and advice
+    """-ksp_view's partition line (:mod:`petsc_htp.ranksplit`): none on one rank, the shares on several, and advice
     above CUT_ADVICE only."""
-    from petsc_htp.partition import CUT_ADVICE, describe
+    from petsc_htp.ranksplit import CUT_ADVICE, describe
 
     assert describe(None) == []
     good, = describe((2, 0.002, 0.003))

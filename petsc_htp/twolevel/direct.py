@@ -50,6 +50,8 @@ class DirectPC:
         Options prefix of the factor: ``<prefix>leaf_``.
     """
 
+    whole = True            # one factor of the whole matrix: no leaves, so the rows' split over the ranks costs nothing
+
     def __init__(self, mat, rows, kind, prefix):
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"

@@ -72,7 +72,8 @@ COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggres
                  "mg_levels_ksp_max_it": "2", "pc_mg_multiplicative_cycles": "2"}   # two V-cycles, deflated form
 # Chebyshev(2) on each level (PETSc's default; three served the one V-cycle of the balanced form before): the DMDA
 # program's CG iterations stay (2 ranks: 1024^2 37, 2048^2 39, 512^2 36 against 35; one rank 2048^2 40) and the
-# solve takes 0.86-0.93 of Chebyshev(3)'s at 1024^2 and 2048^2, as much at 512^2 (results/scale-20261126g);
+# solve takes 0.86-0.93 of Chebyshev(3)'s at 1024^2 and 2048^2, as much at 512^2; the foreign study's free surface
+# and log-normal matrices at 1M rows on 2 ranks: level (log-normal 42 against 40 iterations) (results/scale-20261126g);
 # Chebyshev(1) took 42 iterations at 2048^2
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
 COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
@@ -214,7 +215,7 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
     (the project's own frames). In 2-D the coarse solve is two V-cycles at threshold 0.02 (:data:`COARSE_AMG_2D`),
     exact enough for the deflated form, which then takes one coarse solve an application where the balanced form
     takes two: the DMDA program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup +
-    solve ms (iterations), against one V-cycle in the balanced form: 512^2 460-475 against 488-557 (35 either way),
+    solve ms (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475 against 488-557 (35 either way),
     1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691 (40); one V-cycle deflated took 41 and
     44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
     16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves

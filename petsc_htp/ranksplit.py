@@ -1,14 +1,13 @@
 """How a parallel operator's rows are split over the ranks: the share of its couplings that join rows of two ranks,
 shown by ``-ksp_view`` with advice where the split cuts too many.
 
-HTPPC's leaves, like PETSc's block Jacobi blocks, hold rows of one rank: a split that cuts many
-couplings (rows numbered at random, a mesh generator's order, MatLoad's contiguous blocks of such an order) leaves
-each rank's rows loosely coupled to each other, and the method takes more iterations than on one rank. Measured
-(``examples/matrix_file.py -case NAME -n 65536``, CG to rtol 1e-8, 2026-11-26): on 2 ranks a bare DMDA 2-D matrix, split
-in strips, cuts 0.2 % of the off-diagonal couplings (33 iterations as on one rank); the foreign study's P1 triangles
-and tetrahedra, whose nodes come numbered at random, 49.9 % (39 iterations against 34 on one rank, and 57 against
-40; GAMG 12 and 21 on either). A randomly weighted graph Laplacian in a random order took 269 iterations on 2 ranks
-against 40 on one (GAMG 174-186).
+HTPPC's leaves, like PETSc's block Jacobi blocks, hold rows of one rank: a split that cuts many couplings (rows
+numbered at random, a mesh generator's order, MatLoad's contiguous blocks of such an order) leaves each rank's rows
+loosely coupled to each other, and the method takes more iterations than on one rank (GAMG's smoother does not care):
+on 2 ranks the foreign study's P1 triangles and tetrahedra, nodes numbered at random, cut 49.9 % of the couplings and
+take 39 and 57 CG iterations against 34 and 40 on one rank; the DMDA-style matrix, split in strips, 0.2 % and 33
+either way (results/ranksplit-20261126). A whole-matrix factor (small matrices, gathered on every rank) has no leaves
+and no such line.
 """
 from __future__ import annotations
 
@@ -18,14 +17,15 @@ CUT_ADVICE = 0.2    # share of cut couplings above which -ksp_view advises a bet
 # per rank, a good split of 16 000 rows per rank, cuts about 4 %; rows at random over p ranks cut 1 - 1/p)
 
 
-def crossing(mat, rows, coll):
+def crossing(mat, rows, coll, nonzero=None):
     """None on one rank, else (ranks, share over all ranks, the largest share of one rank) of the nonzero
     off-diagonal entries of ``mat`` whose column belongs to another rank; ``rows``: this rank's rows (CSR, global
-    columns), ``coll`` a :class:`~petsc_htp.collective.Collective` on ``mat``'s communicator (collective)."""
+    columns), ``nonzero`` its entries that are nonzero (computed where not given), ``coll`` a
+    :class:`~petsc_htp.collective.Collective` on ``mat``'s communicator (collective)."""
     if coll.size < 2:
         return None
     start, end = mat.getOwnershipRange()
-    nonzero = rows.data != 0
+    nonzero = rows.data != 0 if nonzero is None else nonzero
     cut = int(np.count_nonzero(nonzero & ((rows.indices < start) | (rows.indices >= end))))
     off = int(np.count_nonzero(nonzero)) - int(np.count_nonzero(rows.diagonal(k=start)))
     worst = coll.max_array(np.array([cut / off if off else 0.0]))[0]
