@@ -67,7 +67,14 @@ def flat(y, leaf, pieces, weights=None) -> tuple:
     they replace the constants (:mod:`.scaling`), then normalised per leaf twice (the second pass removes the
     first's rounding); a leaf where less than :data:`DEPENDENT` of its norm is left gets none.
 
-    Returns (the vector, whether each leaf kept one)."""
+    Returns (the vector, whether each leaf kept one). A failed factor's infinite values pass through quietly: the
+    setup's checks name the failure (a coarse space that is not finite)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return _flat(y, leaf, pieces, weights)
+
+
+def _flat(y, leaf, pieces, weights) -> tuple:
+    """:func:`flat`'s arithmetic."""
     scale = np.sqrt(np.bincount(leaf, y * y, minlength=pieces.count.size))
     w = 1.0 if weights is None else weights
     w2 = pieces.size if weights is None else np.bincount(pieces.label, w * w, minlength=pieces.size.size)
