@@ -248,19 +248,20 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False,
                    near: int = 0) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
-    'gamg' (one V-cycle, set up afresh each numeric step: a reused interpolation costs more iterations than it
-    saves) in ``dim`` dimensions. In 2-D (:data:`COARSE_AMG_2D`) and on the coarse operator of aggregation leaves
-    (``kind``; :data:`COARSE_AMG_3D`) the V-cycle is taken by the balanced form (:func:`coarse_exact`): on the
-    bare 3-D DMDA program (``examples/dmda_poisson.py -dim 3 -n 100 -warmup``) threshold 0.02 keeps the 41
-    iterations of a GCR to rtol 1e-3 around GAMG in the deflated form and takes 4.9 against 8.0 s (threshold 0:
-    84 iterations, 0.1: 53). In 2-D too: on 2 ranks at 2048^2 (``mpiexec -n 2 python examples/dmda_poisson.py -n
-    2048 -warmup``, the paired aggregates' 368 000 coarse rows) threshold 0.01-0.03 takes 40 outer iterations and
-    13.1-14.6 s, 0.05 46 and 15.1 s (threshold 0: 94 iterations, 0.1: 100); at 1024^2 37 against 38 iterations. The
-    LU of a coarse
-    operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested dissection in any dimension: on bare
-    2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430 and 61 100 coarse rows (640^2 and
-    768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317 against 1631 ms. A coarse operator
-    whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
+    'gamg' (V-cycles set up afresh each numeric step: a reused interpolation costs more iterations than it saves)
+    in ``dim`` dimensions: two V-cycles an application in the deflated form in 2-D (:data:`COARSE_AMG_2D`) and on
+    paired 3-D aggregation leaves (:data:`COARSE_AMG_3D_PAIRED`); one in the balanced form on the 3-D coarse operator
+    of aggregation leaves with near null vectors (:data:`COARSE_AMG_3D`) and in the deflated form on Morton leaves'
+    (:data:`COARSE_AMG`; :func:`coarse_exact`). Threshold 0.02 on aggregation leaves' coarse operators: on the bare
+    3-D DMDA program (``examples/dmda_poisson.py -dim 3 -n 100 -warmup``, one V-cycle then) it keeps the 41
+    iterations of a GCR to rtol 1e-3 around GAMG in the deflated form and takes 4.9 against 8.0 s (threshold 0: 84
+    iterations, 0.1: 53); on 2 ranks at 2048^2 (``mpiexec -n 2 python examples/dmda_poisson.py -n 2048 -warmup``,
+    the paired aggregates' 368 000 coarse rows, one V-cycle with Chebyshev(3) then) 0.01-0.03 takes 40 outer
+    iterations and 13.1-14.6 s, 0.05 46 and 15.1 s (threshold 0: 94 iterations, 0.1: 100); at 1024^2 37 against 38
+    iterations. The LU of a coarse operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested
+    dissection in any dimension: on bare 2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430
+    and 61 100 coarse rows (640^2 and 768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317
+    against 1631 ms. A coarse operator whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
     if solver == "gamg":
         if dim == 2:
             return dict(COARSE_AMG_2D)
