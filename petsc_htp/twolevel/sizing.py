@@ -167,12 +167,12 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
     several ranks and :data:`COARSE_SCALAR_DIRECT_MAX` on one (aggregation leaves), else above
-    ``COARSE_DIRECT_MAX[2]`` on one, two distributed GAMG V-cycles
-    (:data:`COARSE_AMG_2D`) replace it, in the deflated form (:func:`coarse_exact`). Morton leaves (the project's
-    own frames, coordinates attached) keep the LU on several ranks up to :data:`COARSE_REDUNDANT_LU_MAX`: at 1M rows on 2
-    ranks (``examples/poisson_multiphase.py -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22
-    iterations and 1.43-1.62 against 1.12-1.47 s (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG
-    iterations), V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
+    ``COARSE_DIRECT_MAX[2]`` on one, two distributed GAMG V-cycles (:data:`COARSE_AMG_2D`) replace it, in the
+    deflated form (:func:`coarse_exact`). Morton leaves (the project's own frames, coordinates attached) keep the LU
+    on several ranks up to :data:`COARSE_REDUNDANT_LU_MAX`: at 1M rows on 2 ranks (``examples/poisson_multiphase.py
+    -n 1048576``, 65 536 coarse rows) the V-cycle took 34 against 22 iterations and 1.43-1.62 against 1.12-1.47 s
+    (setup + solve, 4 runs each). ``examples/dmda_poisson.py -n N -warmup``, setup + solve ms (CG iterations),
+    V-cycle against LU: two ranks, 512^2 586 (37) against 612-659 (36), 1024^2 2 418 (40) against
     4 415 (39), 2048^2 15 077 (42) against 25 235 (40); one rank, 1024^2 (107 718 coarse rows) 4 513 (40)
     against 4 376 (38), 2048^2 (430 000, the eig space) 23 505 (42) against 27 563 (40); with the paired
     aggregates' scalar coarse operator in METIS's order, 2048^2 (368 000 rows) 22 987 (44) against 20 724 (40),
@@ -215,9 +215,9 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
     (the project's own frames). In 2-D the coarse solve is two V-cycles at threshold 0.02 (:data:`COARSE_AMG_2D`),
     exact enough for the deflated form, which then takes one coarse solve an application where the balanced form
     takes two: the DMDA program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup +
-    solve ms (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475 against 488-557 (35 either way),
-    1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691 (40); one V-cycle deflated took 41 and
-    44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
+    solve ms (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475
+    against 488-557 (35 either way), 1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691
+    (40); one V-cycle deflated took 41 and 44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
     16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves
     (``near`` = 0) takes two V-cycles in the deflated form too (:data:`COARSE_AMG_3D_PAIRED`): as many CG iterations
     as under its LU (25 at 32^3 and 64 000 rows), and at 128^3 27 in 9.3 s against one V-cycle's balanced form,
