@@ -217,8 +217,8 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
     takes two: the DMDA program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup +
     solve ms (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475
     against 488-557 (35 either way), 1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691
-    (40); one V-cycle deflated took 41 and 44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves (430 000 coarse rows)
-    16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves
+    (40); one V-cycle deflated took 41 and 44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the
+    standard leaves (430 000 coarse rows) 16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves
     (``near`` = 0) takes two V-cycles in the deflated form too (:data:`COARSE_AMG_3D_PAIRED`): as many CG iterations
     as under its LU (25 at 32^3 and 64 000 rows), and at 128^3 27 in 9.3 s against one V-cycle's balanced form,
     27 in 12.4 s (``-htp_aggregation pairs``, one run each). ``cycles``: the GAMG PC's V-cycles an application
