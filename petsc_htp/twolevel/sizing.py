@@ -206,23 +206,23 @@ def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int 
 
 
 def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, near: int = 0) -> bool:
-    """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve of the 3-D coarse
-    operator of aggregation leaves (``kind``), one V-cycle, which only the balanced form takes well (with exact
-    leaves it is applied through F = W^T C, which assumes E c1 = W^T x: with a V-cycle V it stays symmetric, and
-    positive definite where V converges on its own, eigenvalues of V E in (0, 2), as GAMG's Chebyshev-smoothed
-    cycle does): deflated, that V-cycle costs 1.3-3.4x the CG iterations (a bare 3-D DMDA matrix at 300 763 rows:
-    133 against 39 with the coarse LU). Morton leaves' 3-D coarse operator keeps its V-cycle in the deflated form
-    (the project's own frames). In 2-D the coarse solve is two V-cycles at threshold 0.02 (:data:`COARSE_AMG_2D`),
-    exact enough for the deflated form, which then takes one coarse solve an application where the balanced form
-    takes two: the DMDA program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup +
-    solve ms (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475
-    against 488-557 (35 either way), 1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691
-    (40); one V-cycle deflated took 41 and 44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the
-    standard leaves (430 000 coarse rows) 16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired aggregation leaves
-    (``near`` = 0) takes two V-cycles in the deflated form too (:data:`COARSE_AMG_3D_PAIRED`): as many CG iterations
-    as under its LU (25 at 32^3 and 64 000 rows), and at 128^3 27 in 9.3 s against one V-cycle's balanced form,
-    27 in 12.4 s (``-htp_aggregation pairs``, one run each). ``cycles``: the GAMG PC's V-cycles an application
-    (None: the defaults' for ``dim``, ``kind`` and ``near``); one alone stays in the balanced form."""
+    """Whether the coarse solve is exact enough for the deflated form: not a 'gamg' solve of the 3-D coarse operator of
+    aggregation leaves (``kind``), one V-cycle, which only the balanced form takes well (with exact leaves it is
+    applied through F = W^T C, which assumes E c1 = W^T x: with a V-cycle V it stays symmetric, and positive
+    definite where V converges on its own, eigenvalues of V E in (0, 2), as GAMG's Chebyshev-smoothed cycle does):
+    deflated, that V-cycle costs 1.3-3.4x the CG iterations (a bare 3-D DMDA matrix at 300 763 rows: 133 against 39
+    with the coarse LU). Morton leaves' 3-D coarse operator keeps its V-cycle in the deflated form (the project's
+    own frames). In 2-D the coarse solve is two V-cycles at threshold 0.02 (:data:`COARSE_AMG_2D`), exact enough for
+    the deflated form, which then takes one coarse solve an application where the balanced form takes two: the DMDA
+    program on 2 ranks (``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup``), setup + solve ms
+    (iterations), against one V-cycle in the balanced form (both with Chebyshev(3) then): 512^2 460-475 against
+    488-557 (35 either way), 1024^2 1 868 (37) against 2 331 (37), 2048^2 11 523 (39) against 13 691 (40); one
+    V-cycle deflated took 41 and 44 iterations at 1024^2 and 2048^2. On one rank at 2048^2 with the standard leaves
+    (430 000 coarse rows) 16 761 against 18 216 ms, 42 iterations either way. The 3-D coarse operator of paired
+    aggregation leaves (``near`` = 0) takes two V-cycles in the deflated form too (:data:`COARSE_AMG_3D_PAIRED`): as
+    many CG iterations as under its LU (25 at 32^3 and 64 000 rows), and at 128^3 27 in 9.3 s against one V-cycle's
+    balanced form, 27 in 12.4 s (``-htp_aggregation pairs``, one run each). ``cycles``: the GAMG PC's V-cycles an
+    application (None: the defaults' for ``dim``, ``kind`` and ``near``); one alone stays in the balanced form."""
     if solver != "gamg":
         return True
     if dim == 3 and kind != "aggregation":
