@@ -36,9 +36,9 @@ from petsc4py import PETSc
 from .checks import check_message
 from .collective import Collective
 from .events import event
-from .ranksplit import crossing
 from .pcoptions import HTPOptions
 from .pcview import Inspection
+from .ranksplit import crossing
 from .validation import check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows
 from .threads import set_threads

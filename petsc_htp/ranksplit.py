@@ -17,15 +17,14 @@ CUT_ADVICE = 0.2    # share of cut couplings above which -ksp_view advises a bet
 # per rank, a good split of 16 000 rows per rank, cuts about 4 %; rows at random over p ranks cut 1 - 1/p)
 
 
-def crossing(mat, rows, coll, nonzero=None):
+def crossing(mat, rows, coll, nonzero):
     """None on one rank, else (ranks, share over all ranks, the largest share of one rank) of the nonzero
     off-diagonal entries of ``mat`` whose column belongs to another rank; ``rows``: this rank's rows (CSR, global
-    columns), ``nonzero`` its entries that are nonzero (computed where not given), ``coll`` a
-    :class:`~petsc_htp.collective.Collective` on ``mat``'s communicator (collective)."""
+    columns), ``nonzero`` which of their entries are nonzero, ``coll`` a :class:`~petsc_htp.collective.Collective`
+    on ``mat``'s communicator (collective)."""
     if coll.size < 2:
         return None
     start, end = mat.getOwnershipRange()
-    nonzero = rows.data != 0 if nonzero is None else nonzero
     cut = int(np.count_nonzero(nonzero & ((rows.indices < start) | (rows.indices >= end))))
     off = int(np.count_nonzero(nonzero)) - int(np.count_nonzero(rows.diagonal(k=start)))
     worst = coll.max_array(np.array([cut / off if off else 0.0]))[0]

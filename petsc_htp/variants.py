@@ -106,13 +106,13 @@ class TwoLevel:
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
         n, coll = mat.getSize()[0], Collective(mat.getComm())
+        per_row = coll.sum(A.nnz) / max(n, 1)
         if coll.size > 1 and coll.any(A.shape[0] == 0):
-            return self._empty_rank(n, coll, A)
+            return self._empty_rank(n, coll.size, per_row)
         if not plain:
             return None
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
-        per_row = coll.sum(A.nnz) / max(n, 1)
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             return None
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
@@ -135,16 +135,16 @@ class TwoLevel:
             return graph_shape(block, want_weak=False, samples=8).dim
 
     @staticmethod
-    def _empty_rank(n, coll, A):
+    def _empty_rank(n, ranks, per_row):
         """A matrix with a rank that owns no rows, which the two-level method cannot take: whatever the options, up to
         :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank (Cholesky where rows hold at
-        most ``RICH_ROW`` stored entries on average, else ICC(0)), above a named error."""
+        most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above a named error."""
         from .twolevel import sizing
         from .validation import MatrixError
 
         if n <= sizing.REDUNDANT_MAX:
-            return "cholesky" if coll.sum(A.nnz) <= sizing.RICH_ROW * n else "icc"
-        raise MatrixError(f"the matrix has a rank without rows ({n} rows on {coll.size} ranks); HTPPC's two-level "
+            return "cholesky" if per_row <= sizing.RICH_ROW else "icc"
+        raise MatrixError(f"the matrix has a rank without rows ({n} rows on {ranks} ranks); HTPPC's two-level "
                           f"method needs rows on every rank (up to {sizing.REDUNDANT_MAX} rows one factor of the whole "
                           "matrix serves instead): give every rank rows, or take PCTELESCOPE around HTPPC")
 
