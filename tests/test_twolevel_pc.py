@@ -842,6 +842,34 @@ def test_leaf_blocks_in_a_order_give_the_same_preconditioner(monkeypatch, opts):
     assert not ksp.getPC().getPythonContext().setup.st.lay.d_in_a_order and reason > 0 and relres <= 1.01e-8
 
 
+def test_leaves_of_a_matrix_numbered_at_random_take_their_rows_by_degree(monkeypatch):
+    """Where A's numbering scatters the aggregation leaves, each leaf's rows go by their couplings inside the leaf,
+    fewest first (leaves.by_degree): the same leaves and iterations, a leaf factor with fewer values than A's random
+    order within the leaves gives; a chain's ends come first."""
+    from petsc_htp.scenes import foreign
+    from petsc_htp.twolevel import leaflayout, leaves
+
+    A, b = foreign.dmda(2, 64)
+    perm = np.random.default_rng(1).permutation(A.shape[0])
+    mat = petsc_mat(A[perm][:, perm], null=False)
+    monkeypatch.setattr(leaflayout, "A_ORDER_SPAN", 64)  # D in the leaves' order either way
+    runs = []
+    for span in (10 ** 9, 64):                            # 64: this small matrix counts as scattered
+        monkeypatch.setattr(leaves, "A_ORDER_SPAN", span)
+        reason, its, relres, ksp = solve(mat, b[perm])
+        setup = ksp.getPC().getPythonContext().setup
+        runs.append((its, setup.st.lay.leaves.sizes.copy(), setup.leafsolver.nnz()))
+        assert reason > 0 and relres <= 1.01e-8 and not setup.st.lay.d_in_a_order
+    (its0, sizes0, nnz0), (its1, sizes1, nnz1) = runs
+    assert abs(its0 - its1) <= 1 and np.array_equal(np.sort(sizes0), np.sort(sizes1)) and nnz1 < 0.9 * nnz0, runs
+    chain = sp.diags([-np.ones(4), 2 * np.ones(5), -np.ones(4)], [-1, 0, 1]).tocsr()
+    order = np.array([2, 0, 4, 1, 3])                     # the chain numbered out of order: node order[i] is row i
+    P = sp.csr_matrix((np.ones(5), (np.arange(5), order)), shape=(5, 5))
+    shuffled = (P @ chain @ P.T).tocsr()
+    ends = {int(np.flatnonzero(order == k)[0]) for k in (0, 4)}
+    assert set(leaves.by_degree(shuffled, np.zeros(5, dtype=np.int64), np.arange(5))[:2]) == ends
+
+
 @pytest.mark.slow
 def test_an_ill_conditioned_coarse_lu_is_refined_and_taken_by_the_balanced_form():
     """At a density contrast of 1e6 (65 536 rows) the coarse LU's forward error on a probe is about 4e-5: two

@@ -7,12 +7,13 @@ that turn a later frame's values (``A.data``, same pattern) into the leaf blocks
 not join pieces. Pure numpy: no PETSc, no torch.
 
 D's rows come in A's own order where every leaf keeps A's order of its rows (aggregation leaves, and any
-contiguous leaves) and A's numbering is local (a leaf's rows within :data:`A_ORDER_SPAN` rows of each other): a
-block-diagonal matrix fills in only within its blocks, so its factor in A's order holds what the leaves' order
-would give, and applies to A's vectors without a gather and a scatter (2 x 3 of the 15 ms of a leaf solve on a
+contiguous leaves) and A's numbering is local (a leaf's rows within :data:`.leaves.A_ORDER_SPAN` rows of each
+other): a block-diagonal matrix fills in only within its blocks, so its factor in A's order holds what the leaves'
+order would give, and applies to A's vectors without a gather and a scatter (2 x 3 of the 15 ms of a leaf solve on a
 1M-row DMDA matrix: its CG solve 1.51 -> 1.34 s). Otherwise (Morton and METIS leaves reorder the rows within a
 leaf; a mesh numbered at random, as the foreign study's P1 meshes, where the leaves' order keeps the solve in
-the cache: 116 against 125 ms at 64k rows) D's rows come in the leaves' order, each leaf contiguous.
+the cache: 116 against 125 ms at 64k rows; there aggregation leaves take their rows by their couplings inside
+the leaf, :func:`.leaves.by_degree`, which fills in less) D's rows come in the leaves' order, each leaf contiguous.
 ``d_in_a_order`` says which.
 """
 from __future__ import annotations
@@ -23,10 +24,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .csr import compact, indptr_of
-from .leaves import Leaves
+from .leaves import A_ORDER_SPAN, Leaves, median_span
 from .nullspace import Pieces, find_pieces
 
-A_ORDER_SPAN = 32768   # median rows spanned by a leaf below which D goes in A's order (see the module docstring)
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,13 +101,12 @@ class LeafLayout:
 
 def _a_order_pays(perm, leaf, offsets) -> bool:
     """Whether D goes in A's order: every leaf keeps A's order of its rows, and a leaf's rows lie within
-    :data:`A_ORDER_SPAN` rows of each other (the median leaf), so a triangular solve in A's order reads them from
-    the cache."""
+    :data:`.leaves.A_ORDER_SPAN` rows of each other (the median leaf), so a triangular solve in A's order reads them
+    from the cache."""
     same = leaf[1:] == leaf[:-1]
     if not np.all(perm[1:][same] > perm[:-1][same]):
         return False
-    span = np.maximum.reduceat(perm, offsets[:-1]) - np.minimum.reduceat(perm, offsets[:-1])
-    return bool(np.median(span) < A_ORDER_SPAN)
+    return median_span(perm, offsets) < A_ORDER_SPAN
 
 
 def _within_leaves(rows, start, entry_row, leaf_of) -> tuple:
