@@ -843,9 +843,10 @@ def test_leaf_blocks_in_a_order_give_the_same_preconditioner(monkeypatch, opts):
 
 
 def test_leaves_of_a_matrix_numbered_at_random_take_their_rows_by_degree(monkeypatch):
-    """Where A's numbering scatters the aggregation leaves, each leaf's rows go by their couplings inside the leaf,
-    fewest first (leaves.by_degree): the same leaves and iterations, a leaf factor with fewer values than A's random
-    order within the leaves gives; a chain's ends come first."""
+    """Where A's numbering scatters the aggregation leaves (a leaf's rows span a quarter of the rows, in the median),
+    each leaf's rows go by their couplings inside the leaf, fewest first (leaves.by_degree): the same leaves with
+    their rows reordered, the same iterations, a leaf factor with fewer values than A's random order within the
+    leaves gives; a chain's ends come first."""
     from petsc_htp.scenes import foreign
     from petsc_htp.twolevel import leaflayout, leaves
 
@@ -854,14 +855,19 @@ def test_leaves_of_a_matrix_numbered_at_random_take_their_rows_by_degree(monkeyp
     mat = petsc_mat(A[perm][:, perm], null=False)
     monkeypatch.setattr(leaflayout, "A_ORDER_SPAN", 64)  # D in the leaves' order either way
     runs = []
-    for span in (10 ** 9, 64):                            # 64: this small matrix counts as scattered
-        monkeypatch.setattr(leaves, "A_ORDER_SPAN", span)
+    for scattered in (10.0, leaves.SCATTERED):            # 10: never scattered, A's order within the leaves
+        monkeypatch.setattr(leaves, "SCATTERED", scattered)
         reason, its, relres, ksp = solve(mat, b[perm])
         setup = ksp.getPC().getPythonContext().setup
-        runs.append((its, setup.st.lay.leaves.sizes.copy(), setup.leafsolver.nnz()))
+        lv = setup.st.lay.leaves
+        runs.append((its, lv.perm.copy(), lv.offsets.copy(), setup.leafsolver.nnz()))
         assert reason > 0 and relres <= 1.01e-8 and not setup.st.lay.d_in_a_order
-    (its0, sizes0, nnz0), (its1, sizes1, nnz1) = runs
-    assert abs(its0 - its1) <= 1 and np.array_equal(np.sort(sizes0), np.sort(sizes1)) and nnz1 < 0.9 * nnz0, runs
+    (its0, perm0, offsets0, nnz0), (its1, perm1, offsets1, nnz1) = runs
+    assert np.array_equal(offsets0, offsets1) and not np.array_equal(perm0, perm1)
+    for k in range(offsets0.size - 1):                    # every leaf holds the same rows
+        rows = slice(offsets0[k], offsets0[k + 1])
+        assert np.array_equal(np.sort(perm0[rows]), np.sort(perm1[rows]))
+    assert abs(its0 - its1) <= 1 and nnz1 < 0.9 * nnz0, (its0, its1, nnz0, nnz1)
     chain = sp.diags([-np.ones(4), 2 * np.ones(5), -np.ones(4)], [-1, 0, 1]).tocsr()
     order = np.array([2, 0, 4, 1, 3])                     # the chain numbered out of order: node order[i] is row i
     P = sp.csr_matrix((np.ones(5), (np.arange(5), order)), shape=(5, 5))

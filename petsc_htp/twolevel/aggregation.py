@@ -20,7 +20,8 @@ Rows are treated by what couples them:
   leaf solve is exact on them and they get no coarse vector (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`);
 - rows with couplings but no strong one join the aggregate of their largest coupling.
 
-Within a leaf, rows keep the matrix's order.
+Within a leaf, rows keep the matrix's order, but where its numbering scatters the leaves
+(:func:`.leaves.by_degree`).
 """
 from __future__ import annotations
 

@@ -28,7 +28,6 @@ from .leaves import A_ORDER_SPAN, Leaves, median_span
 from .nullspace import Pieces, find_pieces
 
 
-
 @dataclass(frozen=True, eq=False)
 class LeafLayout:
     """Per-pattern index maps of one rank's rows (see the module docstring).

@@ -25,7 +25,8 @@ from ..ordering import check_coords, check_square, choose_ordering
 LAYOUTS = ("auto", "aggregation", "morton", "graph", "metis", "natural", "rcm")
 CUT_FACTOR = 2.5    # graph leaves cutting more than this / sqrt(leaf) of A's couplings fall back to METIS
 SLACK = 0.25        # a Morton leaf has leaf * (1 +- SLACK) rows
-A_ORDER_SPAN = 32768   # median rows spanned by a leaf from which A's numbering scatters the leaves (leaflayout)
+A_ORDER_SPAN = 32768   # median rows spanned by a leaf from which D goes in the leaves' order (leaflayout)
+SCATTERED = 0.25       # ... or this share of the rows, from which A's numbering scatters the leaves (part_leaves)
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,15 +221,16 @@ def part_leaves(A, parts, kind, t0, smooth=True) -> Leaves:
     With ``smooth``, each part's rows are in the reverse Cuthill-McKee order of its own graph, else in the given
     order: small aggregates (10-40 rows) take the same iterations either way (the eig space's one inverse-iteration
     step smooths its seed), without RCM's 15-20 ms at N = 65536. Where A's numbering scatters the parts (a mesh
-    numbered at random: :func:`median_span` from :data:`A_ORDER_SPAN`), A's order within a part is a random one,
-    whose leaf factor fills in: the rows then go by :func:`by_degree`."""
+    numbered at random: a part's rows span :data:`A_ORDER_SPAN` rows, or :data:`SCATTERED` of them, in the median,
+    :func:`median_span`), A's order within a part is a random one, whose leaf factor fills in: the rows then go by
+    :func:`by_degree`."""
     sizes = np.bincount(parts)
     offsets = np.concatenate(([0], np.cumsum(sizes[sizes > 0])))
     if smooth:
         perm = np.lexsort((_within_parts_rcm(A, parts), parts))
     else:
         perm = np.argsort(parts, kind="stable")
-        if median_span(perm, offsets) >= A_ORDER_SPAN:
+        if median_span(perm, offsets) >= min(A_ORDER_SPAN, SCATTERED * parts.size):
             perm = by_degree(A, parts, perm)
     return Leaves(perm, offsets, kind, (time.perf_counter() - t0) * 1e3)
 
@@ -245,8 +247,8 @@ def by_degree(A, parts, perm) -> np.ndarray:
     fewest first (ties in the given order): a minimum-degree-like order that the leaf factor's natural ordering
     keeps. On the foreign study's matrices at about 64k rows numbered at random, the leaf factor then holds
     178 000 against 268 000 values (the free surface), 275 000 against 422 000 (P1 triangles), 559 000 against
-    1 011 000 (P1 tets), about what each part's reverse Cuthill-McKee order gives for a tenth of its time, and a
-    leaf solve takes 0.48 against 0.82, 0.78 against 1.03 and 1.15 against 1.58 ms."""
+    1 011 000 (P1 tets), and a leaf solve takes 0.65 against 0.82, 0.79 against 1.03 and 1.10 against 1.59 ms
+    (``results/numbering-20261126/fill.py``)."""
     rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
     inside = (parts[rows] == parts[A.indices]) & (rows != A.indices) & (A.data != 0)
     degree = np.bincount(rows[inside], minlength=A.shape[0])

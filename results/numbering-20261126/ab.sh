@@ -8,7 +8,8 @@ for c in ddb98d3 d020fcc; do git worktree add -f -q "$tmp/$c" $c; done
 out=${1:-results/numbering-20261126/ab.txt}
 : > "$out"
 for k in 1 2; do
-  for case in "free_surface random" "dmda2d random" "lognormal random" "fem_tri natural" "fem_tet natural" "dmda2d natural"; do
+  for case in "free_surface random" "dmda2d random" "lognormal random" "fem_tri natural" "fem_tet natural" \
+              "dmda2d natural"; do
     for c in ddb98d3 d020fcc; do
       .venv/bin/python results/numbering-20261126/solve.py "$tmp/$c" $case | tee -a "$out"
     done

@@ -3,7 +3,7 @@ against leaves.by_degree, on the foreign study's free surface (permuted at rando
 nodes numbered at random) at about 64k rows: the Cholesky factor's values (natural ordering, as HTPPC factors D)
 and the median ms of 30 applications.
 
-    OMP_NUM_THREADS=1 python results/numbering-20261126/fill.py > fill.txt
+    OMP_NUM_THREADS=1 python results/numbering-20261126/fill.py > results/numbering-20261126/fill.txt
 """
 import sys
 import time

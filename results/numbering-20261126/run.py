@@ -3,8 +3,10 @@ order (grid rows) and symmetrically permuted at random, each solved once from ze
 1e-8 on the true residual, one thread) by HTPPC as it comes, GAMG tuned (options/cg_gamg.opts) and AMGCL at its
 default coarse size; natural and permuted runs and the methods take turns, REPEATS rounds, medians printed.
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/numbering-20261126/run.py [REPEATS] > out.txt
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/numbering-20261126/run.py [REPEATS] \
+        > results/numbering-20261126/out.txt
 """
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -16,7 +18,8 @@ import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
 from petsc_htp.bench import external  # noqa: E402
 from petsc_htp.bench.foreigncases import CASES  # noqa: E402
 from petsc_htp.bench.studies.foreign import bare_frame  # noqa: E402
@@ -62,7 +65,9 @@ def solve(method, A, b, case):
 
 def main():
     reps = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    print(f"# {time.strftime('%Y-%m-%d')}, setup + solve ms (iterations), median of {reps}")
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    print(f"# {time.strftime('%Y-%m-%d')}, commit {commit.stdout.strip()}, setup + solve ms (iterations), median of "
+          f"{reps}")
     for case in ("dmda2d", "free_surface", "lognormal"):
         A, b = CASES[case](65536, 0)
         p = np.random.default_rng(0).permutation(A.shape[0])
