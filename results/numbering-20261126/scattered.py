@@ -19,34 +19,11 @@ from petsc4py import PETSc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-import petsc_htp  # noqa: E402
 from petsc_htp.bench.foreigncases import CASES  # noqa: E402
 from petsc_htp.twolevel import leaves  # noqa: E402
+from timed import fresh_solve  # noqa: E402
 
 CONFIGS = {"by degree": leaves.SCATTERED, "A's order": 10.0}
-
-
-def run(mat, b):
-    """(setup ms, solve ms, iterations, leaf solver values) of one fresh KSP with HTPPC's two-level method."""
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    ksp.setOperators(mat, mat)
-    ksp.setType("cg")
-    ksp.setTolerances(rtol=1e-8)
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    pc = ksp.getPC()
-    pc.setType("python")
-    ctx = petsc_htp.HTPPC()
-    pc.setPythonContext(ctx)
-    rhs = mat.createVecLeft()
-    rhs.array[:] = b
-    x = rhs.duplicate()
-    t = time.perf_counter()
-    ksp.setUp()
-    t1 = time.perf_counter()
-    ksp.solve(rhs, x)
-    out = (1e3 * (t1 - t), 1e3 * (time.perf_counter() - t1), ksp.getIterationNumber(), ctx.setup.leafsolver.nnz())
-    ksp.destroy()
-    return out
 
 
 PETSc.Options().setValue("htp_direct_max", 0)                  # the two-level method at this size
@@ -65,7 +42,7 @@ for case in ("free_surface", "fem_tri", "fem_tet"):
     for _ in range(5):
         for label, share in CONFIGS.items():
             leaves.SCATTERED = share
-            rows[label].append(run(mat, b))
+            rows[label].append(fresh_solve(mat, b))
     for label, r in rows.items():
         setup, solve = np.median(np.array([x[:2] for x in r[1:]]), axis=0)
         print(f"{case} N={A.shape[0]} {label}: setup {setup:.1f} solve {solve:.1f} ms, {r[-1][2]} iterations, "

@@ -6,7 +6,6 @@ solve ms of the last 3 and the iterations.
 """
 import os
 import sys
-import time
 
 sys.path.insert(0, sys.argv[1])
 import petsc4py  # noqa: E402
@@ -18,6 +17,7 @@ from petsc4py import PETSc  # noqa: E402
 
 import petsc_htp  # noqa: E402
 from petsc_htp.bench.foreigncases import CASES  # noqa: E402
+from timed import fresh_solve  # noqa: E402
 
 assert petsc_htp.__file__.startswith(sys.argv[1]), petsc_htp.__file__
 case, order = sys.argv[2], sys.argv[3]
@@ -30,24 +30,8 @@ mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indi
 mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
 out = []
 for _ in range(4):
-    ksp = PETSc.KSP().create()
-    ksp.setOperators(mat)
-    ksp.setType("cg")
-    ksp.setTolerances(rtol=1e-8)
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    pc = ksp.getPC()
-    pc.setType("python")
-    pc.setPythonContext(petsc_htp.HTPPC())
-    rhs = mat.createVecLeft()
-    rhs.array[:] = b
-    x = rhs.duplicate()
-    t = time.perf_counter()
-    ksp.setUp()
-    t1 = time.perf_counter()
-    ksp.solve(rhs, x)
-    out.append((1e3 * (t1 - t), 1e3 * (time.perf_counter() - t1)))
-    its = ksp.getIterationNumber()
-    ksp.destroy()
+    setup_ms, solve_ms, its, _ = fresh_solve(mat, b)
+    out.append((setup_ms, solve_ms))
 setup, solve = np.median(np.array(out[1:]), axis=0)
 print(f"{case} {order} {os.path.basename(sys.argv[1].rstrip('/'))} its {its} setup {setup:.1f} solve {solve:.1f} "
       f"total {setup + solve:.1f}")
