@@ -90,7 +90,7 @@ class TwoLevel:
         if kind is not None:
             from .twolevel.direct import DirectPC
 
-            return DirectPC(mat, A, kind, self.prefix + "htp_")
+            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why)
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
@@ -99,9 +99,11 @@ class TwoLevel:
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
         every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
-        (collective)."""
+        (collective); at any size on one rank ICC(0) where the graph is no mesh (:data:`sizing.EXPANDER_GROWTH`),
+        :attr:`why` saying so."""
         from .twolevel import sizing
 
+        self.why = None
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
@@ -114,7 +116,7 @@ class TwoLevel:
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
-            return None
+            return self._no_mesh(A) if coll.size == 1 and coords is None else None
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -122,6 +124,18 @@ class TwoLevel:
             return "icc"                                                  # the same in any dimension
         dim = coords.shape[1] if coords is not None else self._dimension(mat, A, coll)
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
+
+    def _no_mesh(self, A):
+        """'icc' where one rank's graph grows faster than any mesh's (a small-world network), else None."""
+        from .twolevel import sizing
+        from .twolevel.graphshape import graph_shape
+
+        growth = graph_shape(A, want_weak=False, samples=8).growth
+        if not growth >= sizing.EXPANDER_GROWTH:                       # nan: too few coupled rows to tell
+            return None
+        self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, a mesh's at most 3): a coarse "
+                    "space does not pay")
+        return "icc"
 
     @staticmethod
     def _dimension(mat, A, coll) -> int:

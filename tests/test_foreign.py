@@ -298,6 +298,26 @@ def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
     assert (text.startswith("whole matrix:") and kind in text) if kind else "leaves: aggregation" in text, text
 
 
+def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size():
+    """A random graph of degree about 6 (its balls grow exponentially, no mesh's do) above the small-matrix sizes:
+    one rank takes ICC(0) of the whole matrix and -ksp_view says why; -htp_direct_max 0 keeps the two-level method.
+    A 2-D grid of the same size stays two-level (test_the_whole_matrix_factor_is_sized_by_the_problem)."""
+    n = 12000
+    rng = np.random.default_rng(0)
+    rows, cols = np.repeat(np.arange(n), 3), rng.integers(0, n, 3 * n)
+    keep = rows != cols
+    W = sp.csr_matrix((np.ones(int(keep.sum())), (rows[keep], cols[keep])), shape=(n, n))
+    W = ((W + W.T) > 0).astype(float)
+    A = sp.csr_matrix(sp.diags(np.asarray(W.sum(axis=1)).ravel() + 0.01) - W)
+    A.sort_indices()
+    b = rng.standard_normal(n)
+    reason, its, relres, ksp, _ = solve(A, b)
+    text = lines(ksp)
+    assert reason > 0 and relres <= 1e-8 and text.startswith("whole matrix: ICC(0)") and "graph is no mesh" in text
+    reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+
+
 @pytest.mark.parametrize("n", [10000, 250000])
 def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
     """The same couplings scaled keep the leaves; a jump of 1e3 that moved keeps them too while the extra

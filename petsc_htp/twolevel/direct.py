@@ -48,13 +48,15 @@ class DirectPC:
         cholesky or icc (:data:`FACTORS`).
     prefix : str
         Options prefix of the factor: ``<prefix>leaf_``.
+    why : str, optional
+        Why the whole matrix is factored (None: it is small enough).
     """
 
     whole = True            # one factor of the whole matrix: no leaves, so the rows' split over the ranks costs nothing
 
-    def __init__(self, mat, rows, kind, prefix):
+    def __init__(self, mat, rows, kind, prefix, why=None):
         t0 = time.perf_counter()
-        self.mat, self.kind, self.prefix = mat, kind, prefix + "leaf_"
+        self.mat, self.kind, self.prefix, self.why = mat, kind, prefix + "leaf_", why
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = nullspace.graph_components(rows) if self.ranks == 1 else (0, None)
         self.G = self.pc = None
@@ -152,7 +154,7 @@ class DirectPC:
             where = (f" ({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
                      f"options -{self.prefix}*)")
             memory = f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"
-        return [f"whole matrix: {what}; {n} rows, within the sizes where it is cheapest{where}"
+        return [f"whole matrix: {what}; {n} rows, {self.why or 'within the sizes where it is cheapest'}{where}"
                 + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),
                 f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}", memory]
 

@@ -38,6 +38,12 @@ with its CG iterations costs less (the same sweep with ``cg_icc``: a third to a 
 1e10 already takes 198 ICC iterations, 47 against 36 ms). With coordinates attached, the project's multiphase
 frames, the two-level method stays ahead (25.6 against 44.9 ms per frame at 32^3 in sequence mode).
 
+A graph whose balls grow faster than any mesh's (growth exponent at least :data:`EXPANDER_GROWTH`, where meshes
+give 1.6-2.7: a small-world network, such as a scale-free graph's Laplacian) gets ICC(0) of the whole matrix on one
+rank at any size: its coarse operator is as small-world as the graph and costs more than it saves
+(``results/expander-20261126/run.py``, Barabasi-Albert Laplacians + 0.01 I at 20 000-200 000 rows: 31-241
+against 129-3 033 ms of the two-level method, 14 against 18 iterations; GAMG 1.2-12.5 s up to 60 000).
+
 On several ranks the same factor, of the whole matrix gathered on every rank (PCREDUNDANT), serves at the same
 sizes, and wherever a rank owns no rows (the two-level method needs rows on every rank) up to :data:`REDUNDANT_MAX`
 rows: ``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup`` with HTPPC as it comes (above 8 000 rows
@@ -54,6 +60,7 @@ DIRECT_MAX = {2: 8000, 3: 1000}    # rows up to which one sparse Cholesky factor
 WHOLE_ICC_MAX = {2: 8000, 3: 8000}  # bare matrices: rows up to which ICC(0) of the whole matrix beats the two-level
 REDUNDANT_MAX = 8000                # a rank without rows: matrix rows up to which it is factored whole on every rank
 RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
+EXPANDER_GROWTH = 4.0               # ball growth exponent (graphshape) from which a graph is no mesh: ICC(0), any size
 POSITIVE_MAX = 0.05                 # 2-D: share of positive off-diagonal couplings up to which rich rows are paired
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
