@@ -99,8 +99,8 @@ class TwoLevel:
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
         every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
-        (collective); at any size on one rank ICC(0) where the graph is no mesh (:data:`sizing.EXPANDER_GROWTH`),
-        :attr:`why` saying so."""
+        (collective); on one rank above those sizes ICC(0) where the graph is no mesh
+        (:data:`sizing.EXPANDER_GROWTH`), :attr:`why` saying so."""
         from .twolevel import sizing
 
         self.why = None
@@ -133,7 +133,7 @@ class TwoLevel:
         growth = graph_shape(A, want_weak=False, samples=8).growth
         if not growth >= sizing.EXPANDER_GROWTH:                       # nan: too few coupled rows to tell
             return None
-        self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, a mesh's at most 3): a coarse "
+        self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "
                     "space does not pay")
         return "icc"
 

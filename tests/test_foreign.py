@@ -318,6 +318,18 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size():
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
 
 
+def test_wide_stencils_and_nodes_stay_meshes():
+    """The graph of a 27-point 3-D stencil, and of the same with 3 unknowns per node (elasticity's pattern), grows as a
+    mesh's, well below sizing.EXPANDER_GROWTH, so such matrices above the small sizes keep the two-level method."""
+    from petsc_htp.twolevel.graphshape import graph_shape
+
+    side = 22
+    path = sp.diags([np.ones(side - 1), np.ones(side), np.ones(side - 1)], [-1, 0, 1])
+    box = sp.kron(sp.kron(path, path), path).tocsr()                     # 27 points, 10 648 rows
+    for A in (box, sp.kron(box, np.ones((3, 3))).tocsr()):
+        assert graph_shape(A, want_weak=False, samples=8).growth < sizing.EXPANDER_GROWTH - 1
+
+
 @pytest.mark.parametrize("n", [10000, 250000])
 def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
     """The same couplings scaled keep the leaves; a jump of 1e3 that moved keeps them too while the extra

@@ -1,7 +1,9 @@
-"""A graph that is no mesh: the Laplacian of a Barabasi-Albert scale-free graph (each new node joins 3 nodes chosen
-by degree) plus 0.01 I, one solve from zero (CG to rtol 1e-8 on the true residual, one thread): HTPPC as it comes
-(ICC(0) of the whole matrix, as its graph shows), HTPPC's two-level method (-htp_direct_max 0, what it did before),
-PETSc's ICC(0), Jacobi and GAMG at its defaults (up to 60 000 rows: at 200 000 its setup took 138 s).
+"""Graphs that are no mesh, one solve from zero each (CG to rtol 1e-8 on the true residual, one thread): the
+Laplacian of a Barabasi-Albert scale-free graph (each new node joins 3 nodes chosen by degree) plus 0.01 I, and a
+random graph of about 6 couplings a row with couplings of both signs (N(0, 1)) and a diagonal of the row's absolute
+sum plus 1 (SPD, no M-matrix). HTPPC as it comes (ICC(0) of the whole matrix, as its graph shows), HTPPC's
+two-level method (-htp_direct_max 0, what it did before), PETSc's ICC(0), Jacobi and GAMG at its defaults (up to
+60 000 rows).
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/expander-20261126/run.py \\
         > results/expander-20261126/out.txt
@@ -41,6 +43,17 @@ def barabasi_albert(n, m, seed=0) -> sp.csr_matrix:
     L = sp.csr_matrix(L)
     L.sort_indices()
     return L
+
+
+def mixed_signs(n, seed=0) -> sp.csr_matrix:
+    """A random graph of ``n`` nodes, about 6 couplings a row drawn from N(0, 1), symmetric, with the row's
+    absolute sum plus 1 on the diagonal."""
+    rng = np.random.default_rng(seed)
+    R = sp.random(n, n, density=3 / n, random_state=seed, data_rvs=rng.standard_normal)
+    S = R + R.T
+    A = sp.csr_matrix(S + sp.diags(np.asarray(abs(S).sum(axis=1)).ravel() + 1.0))
+    A.sort_indices()
+    return A
 
 
 def solve(A, pc_type, opts=None):
@@ -83,8 +96,9 @@ commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"]
 print(f"# {time.strftime('%Y-%m-%d')}, commit {commit.stdout.strip()}; setup + solve ms (iterations), best of 2")
 METHODS = {"HTPPC": ("python", None), "HTPPC two-level": ("python", {"htp_direct_max": 0}),
            "ICC(0)": ("icc", None), "Jacobi": ("jacobi", None), "GAMG": ("gamg", None)}
-for n in (20000, 60000, 200000):
-    A = barabasi_albert(n, 3)
+for family, n in [("scale-free", 20000), ("scale-free", 60000), ("scale-free", 200000), ("mixed signs", 20000),
+                  ("mixed signs", 60000)]:
+    A = barabasi_albert(n, 3) if family == "scale-free" else mixed_signs(n)
     solve(A, "python")                                            # warm-up
     cells = []
     for name, (kind, opts) in METHODS.items():
@@ -93,4 +107,4 @@ for n in (20000, 60000, 200000):
         runs = [solve(A, kind, opts) for _ in range(2)]
         best = min(runs, key=lambda r: r[0] + r[1])
         cells.append(f"{name} {best[0] + best[1]:.1f} ({best[2]}, setup {best[0]:.1f}, relres {best[3]:.1e})")
-    print(f"N={n} nnz={A.nnz} largest row {np.diff(A.indptr).max()}: " + "; ".join(cells), flush=True)
+    print(f"{family} N={n} nnz={A.nnz} largest row {np.diff(A.indptr).max()}: " + "; ".join(cells), flush=True)
