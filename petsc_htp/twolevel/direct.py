@@ -58,7 +58,7 @@ class DirectPC:
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix, self.why = mat, kind, prefix + "leaf_", why
         self.ranks = mat.getComm().getSize()
-        self.n_comp, self.comp_of_row = nullspace.graph_components(rows) if self.ranks == 1 else (0, None)
+        self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
         self.G = self.pc = None
         self.rest, self.gathered = {}, 0
         self.age, self.times, self.null_components = 0, {}, 0
@@ -100,13 +100,18 @@ class DirectPC:
 
     def _grounded(self, rows):
         """The operator, or its copy with one diagonal entry of each null component raised (one rank)."""
-        nsp = self.mat.getNullSpace()
+        nsp, diag = self.mat.getNullSpace(), rows.diagonal()
+        rowsum = None if nsp.handle else np.asarray(rows.sum(axis=1)).ravel()
+        if rowsum is not None and not np.any(np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)):
+            self.null_components = 0                     # no row sum vanishes: no component can be null
+            return self.mat
+        if self.comp_of_row is None:
+            self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
         if nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
                                                self.comp_of_row, self.n_comp)
         else:
-            null = nullspace.null_by_rowsums(np.asarray(rows.sum(axis=1)).ravel(), rows.diagonal(), self.comp_of_row,
-                                             self.n_comp)
+            null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp)
         self.null_components = int(null.sum())
         if not null.any():
             return self.mat
