@@ -116,7 +116,7 @@ class TwoLevel:
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
-            return self._no_mesh(A) if coll.size == 1 and coords is None else None
+            return self._no_mesh(mat, A, coll) if coords is None else None
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -125,17 +125,22 @@ class TwoLevel:
         dim = coords.shape[1] if coords is not None else self._dimension(mat, A, coll)
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
 
-    def _no_mesh(self, A):
-        """'icc' where one rank's graph grows faster than any mesh's (a small-world network), else None."""
+    def _no_mesh(self, mat, A, coll):
+        """'icc' (on several ranks 'bjacobi') where the graph grows faster than any mesh's (a small-world network) in a
+        rank's diagonal block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments
+        that grow less), else None (collective)."""
+        from .petscmat import diagonal_block
         from .twolevel import sizing
         from .twolevel.graphshape import graph_shape
 
-        growth = graph_shape(A, want_weak=False, samples=8).growth
-        if not growth >= sizing.EXPANDER_GROWTH:                       # nan: too few coupled rows to tell
+        with diagonal_block(mat, A) as block:
+            growth = graph_shape(block, want_weak=False, samples=8).growth
+        growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
+        if not growth >= sizing.EXPANDER_GROWTH:
             return None
         self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "
                     "space does not pay")
-        return "icc"
+        return "icc" if coll.size == 1 else "bjacobi"
 
     @staticmethod
     def _dimension(mat, A, coll) -> int:

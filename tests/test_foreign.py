@@ -298,24 +298,42 @@ def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
     assert (text.startswith("whole matrix:") and kind in text) if kind else "leaves: aggregation" in text, text
 
 
-def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size():
-    """A random graph of degree about 6 (its balls grow exponentially, no mesh's do) above the small-matrix sizes:
-    one rank takes ICC(0) of the whole matrix and -ksp_view says why; -htp_direct_max 0 keeps the two-level method.
-    A 2-D grid of the same size stays two-level (test_the_whole_matrix_factor_is_sized_by_the_problem)."""
-    n = 12000
-    rng = np.random.default_rng(0)
-    rows, cols = np.repeat(np.arange(n), 3), rng.integers(0, n, 3 * n)
+def _random_graph(n, per_row, seed=0) -> sp.csr_matrix:
+    """The Laplacian + 0.01 I of a random graph of ``n`` nodes, each joined to ``per_row`` random others."""
+    rng = np.random.default_rng(seed)
+    rows, cols = np.repeat(np.arange(n), per_row), rng.integers(0, n, per_row * n)
     keep = rows != cols
     W = sp.csr_matrix((np.ones(int(keep.sum())), (rows[keep], cols[keep])), shape=(n, n))
     W = ((W + W.T) > 0).astype(float)
     A = sp.csr_matrix(sp.diags(np.asarray(W.sum(axis=1)).ravel() + 0.01) - W)
     A.sort_indices()
-    b = rng.standard_normal(n)
+    return A
+
+
+def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_path):
+    """A random graph of degree about 6 (its balls grow exponentially, no mesh's do) above the small-matrix sizes:
+    one rank takes ICC(0) of the whole matrix and -ksp_view says why; -htp_direct_max 0 keeps the two-level method.
+    On two ranks (examples/matrix_file.py on the graph of degree about 12, whose ranks' blocks keep about 6) ICC(0)
+    of each rank's block, PCBJACOBI. A 2-D grid of the same size stays two-level
+    (test_the_whole_matrix_factor_is_sized_by_the_problem)."""
+    A = _random_graph(12000, 3)
+    b = np.random.default_rng(1).standard_normal(A.shape[0])
     reason, its, relres, ksp, _ = solve(A, b)
     text = lines(ksp)
     assert reason > 0 and relres <= 1e-8 and text.startswith("whole matrix: ICC(0)") and "graph is no mesh" in text
     reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+    A = _random_graph(12000, 6)
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
+                                comm=PETSc.COMM_SELF)
+    path = tmp_path / "graph.petsc"
+    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
+    mat.view(viewer)
+    viewer.destroy()
+    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8, proc.stdout
 
 
 def test_wide_stencils_and_nodes_stay_meshes():

@@ -26,11 +26,15 @@ from .inner import configured_pc, set_up
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
                    "pc_factor_shift_type": "positive_definite"}}
+BLOCKS = {"pc_type": "bjacobi", "sub_pc_type": "icc", "sub_pc_factor_shift_type": "positive_definite"}
 
 
 def factor_options(kind: str, ranks: int) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
-    matrix on every rank (a rank that owns no rows included) and factors it there."""
+    matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (a graph that is
+    no mesh on several ranks): ICC(0) of each rank's diagonal block (:data:`BLOCKS`)."""
+    if kind == "bjacobi":
+        return dict(BLOCKS)
     opts = FACTORS[kind]
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if ranks > 1 else dict(opts)
 
@@ -81,16 +85,16 @@ class DirectPC:
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
             self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
-            if self.ranks > 1 and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is the leaf solver's: the
-                self.pc.setType("redundant")                          # gathered factor's is -htp_leaf_redundant_pc_type
+            if self.ranks > 1 and self.kind != "bjacobi" and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
+                self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"
             self.ordering = PETSc.Options(self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key,
-                                                                 FACTORS[self.kind][key])
+                                                                 FACTORS.get(self.kind, FACTORS["icc"])[key])
         else:
             self.pc.setOperators(target, target)
         set_up(self.pc, self.prefix, self.rest)
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
-        if self.ranks > 1:                               # the gathered values' bytes, read here (collective)
+        if self.ranks > 1 and self.kind != "bjacobi":    # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
         if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
             negative = self.pc.getFactorMatrix().getInertia()[0]
@@ -142,6 +146,8 @@ class DirectPC:
     def nbytes(self) -> int:
         """Bytes of the factor (on several ranks: of the whole matrix's values, which every rank gathers and factors;
         PCREDUNDANT does not show its factor)."""
+        if self.kind == "bjacobi":
+            return int(8 * self.pc.getBJacobiSubKSP()[0].getPC().getFactorMatrix().getInfo()["nz_used"])
         if self.ranks > 1:
             return self.gathered
         return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
@@ -151,7 +157,11 @@ class DirectPC:
         n = self.mat.getSize()[0]
         what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
                 "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
-        if self.ranks > 1:
+        if self.kind == "bjacobi":
+            what = "ICC(0) of each rank's diagonal block (PCBJACOBI)"
+            where = f" (options -{self.prefix}sub_*)"
+            memory = f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
+        elif self.ranks > 1:
             where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
                      f"{self.kind}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
             memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
