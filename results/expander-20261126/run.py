@@ -94,19 +94,24 @@ def solve(A, pc_type, opts=None):
     return out
 
 
-commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-print(f"# {time.strftime('%Y-%m-%d')}, commit {commit.stdout.strip()}; setup + solve ms (iterations), best of 2")
-METHODS = {"HTPPC": ("python", None), "HTPPC two-level": ("python", {"htp_direct_max": 0}),
-           "ICC(0)": ("icc", None), "Jacobi": ("jacobi", None), "GAMG": ("gamg", None)}
-for family, n in [("scale-free", 20000), ("scale-free", 60000), ("scale-free", 200000), ("mixed signs", 20000),
-                  ("mixed signs", 60000)]:
-    A = barabasi_albert(n, 3) if family == "scale-free" else mixed_signs(n)
-    solve(A, "python")                                            # warm-up
-    cells = []
-    for name, (kind, opts) in METHODS.items():
-        if name == "GAMG" and n > 60000:
-            continue
-        runs = [solve(A, kind, opts) for _ in range(2)]
-        best = min(runs, key=lambda r: r[0] + r[1])
-        cells.append(f"{name} {best[0] + best[1]:.1f} ({best[2]}, setup {best[0]:.1f}, relres {best[3]:.1e})")
-    print(f"{family} N={n} nnz={A.nnz} largest row {np.diff(A.indptr).max()}: " + "; ".join(cells), flush=True)
+def main():
+    commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    print(f"# {time.strftime('%Y-%m-%d')}, commit {commit.stdout.strip()}; setup + solve ms (iterations), best of 2")
+    METHODS = {"HTPPC": ("python", None), "HTPPC two-level": ("python", {"htp_direct_max": 0}),
+               "ICC(0)": ("icc", None), "Jacobi": ("jacobi", None), "GAMG": ("gamg", None)}
+    for family, n in [("scale-free", 20000), ("scale-free", 60000), ("scale-free", 200000), ("mixed signs", 20000),
+                      ("mixed signs", 60000)]:
+        A = barabasi_albert(n, 3) if family == "scale-free" else mixed_signs(n)
+        solve(A, "python")                                            # warm-up
+        cells = []
+        for name, (kind, opts) in METHODS.items():
+            if name == "GAMG" and n > 60000:
+                continue
+            runs = [solve(A, kind, opts) for _ in range(2)]
+            best = min(runs, key=lambda r: r[0] + r[1])
+            cells.append(f"{name} {best[0] + best[1]:.1f} ({best[2]}, setup {best[0]:.1f}, relres {best[3]:.1e})")
+        print(f"{family} N={n} nnz={A.nnz} largest row {np.diff(A.indptr).max()}: " + "; ".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()
