@@ -45,7 +45,7 @@ decides): its coarse operator is as small-world as the graph and costs more than
 (``results/expander-20261126/run.py``: Barabasi-Albert Laplacians + 0.01 I at 20 000-200 000 rows 25-205 against
 124-2 737 ms of the two-level method, 14 against 18 iterations, GAMG 1.2-12.8 s up to 60 000; a random graph with
 couplings of both signs at 20 000 and 60 000 rows 14 and 40 against 139 and 814 ms, 10 against 17 iterations;
-``ranks.sh``: the scale-free graph on 2 ranks 78 and 231 against 2 342 and 36 826 ms at 60 000 and 200 000 rows).
+``ranks.sh``: the scale-free graph on 2 ranks 95 and 193 against 2 050 and 37 677 ms at 60 000 and 200 000 rows).
 
 On several ranks the same factor, of the whole matrix gathered on every rank (PCREDUNDANT), serves at the same
 sizes, and wherever a rank owns no rows (the two-level method needs rows on every rank) up to :data:`REDUNDANT_MAX`
