@@ -122,19 +122,16 @@ class TwoLevel:
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
             return "icc"                                                  # the same in any dimension
-        dim = coords.shape[1] if coords is not None else self._dimension(mat, A, coll)
+        dim = coords.shape[1] if coords is not None else self._block_shape(mat, A).dim
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
 
     def _no_mesh(self, mat, A, coll):
         """'icc' (on several ranks 'bjacobi') where the graph grows faster than any mesh's (a small-world network) in a
         rank's diagonal block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments
         that grow less), else None (collective)."""
-        from .petscmat import diagonal_block
         from .twolevel import sizing
-        from .twolevel.graphshape import graph_shape
 
-        with diagonal_block(mat, A) as block:
-            growth = graph_shape(block, want_weak=False, samples=8).growth
+        growth = self._block_shape(mat, A).growth
         growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
         if not growth >= sizing.EXPANDER_GROWTH:
             return None
@@ -143,15 +140,14 @@ class TwoLevel:
         return "icc" if coll.size == 1 else "bjacobi"
 
     @staticmethod
-    def _dimension(mat, A, coll) -> int:
-        """What this rank's diagonal block of the graph shows (:mod:`.twolevel.graphshape`): 2 or 3."""
+    def _block_shape(mat, A):
+        """What this rank's diagonal block of the graph shows (:mod:`.twolevel.graphshape`: dimension and growth),
+        from 8 sampled balls."""
         from .petscmat import diagonal_block
         from .twolevel.graphshape import graph_shape
 
-        if coll.size == 1:
-            return graph_shape(A, want_weak=False, samples=8).dim
         with diagonal_block(mat, A) as block:
-            return graph_shape(block, want_weak=False, samples=8).dim
+            return graph_shape(block, want_weak=False, samples=8)
 
     @staticmethod
     def _empty_rank(n, ranks, per_row):

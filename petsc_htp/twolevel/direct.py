@@ -87,9 +87,9 @@ class DirectPC:
             self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
             if self.ranks > 1 and self.kind != "bjacobi" and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
-            key = "pc_factor_mat_ordering_type"
-            self.ordering = PETSc.Options(self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key,
-                                                                 FACTORS.get(self.kind, FACTORS["icc"])[key])
+            key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)
+            self.ordering = None if self.kind == "bjacobi" else PETSc.Options(self.prefix).getString(
+                ("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind][key])
         else:
             self.pc.setOperators(target, target)
         set_up(self.pc, self.prefix, self.rest)
