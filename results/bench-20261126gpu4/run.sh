@@ -1,7 +1,7 @@
 #!/bin/bash
 # The CUDA-Graph fast path on a lent GPU (2026-11-26, through the device tool, from the repository root; the pyamg
-# 5.4.1 cp312 wheel carried in .whl/, see results/bench-20261126gpu/run.sh). Code of 9017dc7: the same run as
-# results/bench-20261126gpu2 after the two-level changes since 0546b7d (sizing, spaces, reuse rules).
+# 5.4.1 cp312 wheel carried in .whl/, see results/bench-20261126gpu/run.sh). Code of ff06717: the run of
+# results/bench-20261126gpu3 (9017dc7) after the foreign-operator changes since (leaf order by degree, sizing).
 set -o pipefail
 export PYTHONUNBUFFERED=1
 python3 -m pip install --no-deps --no-index -q .whl/pyamg-*.whl
