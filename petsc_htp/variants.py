@@ -128,11 +128,16 @@ class TwoLevel:
     def _no_mesh(self, mat, A, coll):
         """'icc' (on several ranks 'bjacobi') where the graph grows faster than any mesh's (a small-world network) in a
         rank's diagonal block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments
-        that grow less), else None (collective)."""
-        from .twolevel import sizing
+        that grow less), or where a large share of the couplings crosses ranks in the whole graph
+        (:mod:`.twolevel.spread`), else None (collective)."""
+        from .ranksplit import crossing
+        from .twolevel import sizing, spread
 
         growth = self._block_shape(mat, A).growth
         growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
+        if coll.size > 1 and not growth >= sizing.EXPANDER_GROWTH:
+            if crossing(mat, A, coll, A.data != 0)[1] >= spread.CROSSING:    # the blocks keep too few couplings to tell
+                growth = spread.global_growth(mat, A, coll)
         if not growth >= sizing.EXPANDER_GROWTH:
             return None
         self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "

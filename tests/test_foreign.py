@@ -313,9 +313,14 @@ def _random_graph(n, per_row, seed=0) -> sp.csr_matrix:
 def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_path):
     """A random graph of degree about 6 (its balls grow exponentially, no mesh's do) above the small-matrix sizes:
     one rank takes ICC(0) of the whole matrix and -ksp_view says why; -htp_direct_max 0 keeps the two-level method.
-    On two ranks (examples/matrix_file.py on the graph of degree about 12, whose ranks' blocks keep about 6) ICC(0)
-    of each rank's block, PCBJACOBI. A 2-D grid of the same size stays two-level
-    (test_the_whole_matrix_factor_is_sized_by_the_problem)."""
+    On two ranks (examples/matrix_file.py) ICC(0) of each rank's block, PCBJACOBI: for the graph of degree about 12,
+    whose ranks' blocks keep about 6 couplings a row, by the blocks' growth; for the same graph of degree about 6,
+    whose blocks keep about 3 and grow no faster than a mesh, by the whole graph's (:mod:`.twolevel.spread`). P1
+    triangles numbered at random cut as many couplings between the ranks and stay two-level. A 2-D grid of the same
+    size stays two-level (test_the_whole_matrix_factor_is_sized_by_the_problem)."""
+    from petsc_htp.twolevel.graphshape import graph_shape
+    from petsc_htp.twolevel.sizing import EXPANDER_GROWTH
+
     A = _random_graph(12000, 3)
     b = np.random.default_rng(1).standard_normal(A.shape[0])
     reason, its, relres, ksp, _ = solve(A, b)
@@ -323,17 +328,46 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
     assert reason > 0 and relres <= 1e-8 and text.startswith("whole matrix: ICC(0)") and "graph is no mesh" in text
     reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
-    A = _random_graph(12000, 6)
-    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
-                                comm=PETSc.COMM_SELF)
-    path = tmp_path / "graph.petsc"
-    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
-    mat.view(viewer)
-    viewer.destroy()
-    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
-    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8, proc.stdout
+    assert graph_shape(A[:6000, :6000].tocsr(), want_weak=False, samples=8).growth < EXPANDER_GROWTH
+    script = EXAMPLE.parent / "matrix_file.py"
+    for per_row in (6, 3):
+        A = _random_graph(12000, per_row)
+        mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                  A.data), comm=PETSc.COMM_SELF)
+        path = tmp_path / f"graph{per_row}.petsc"
+        viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
+        mat.view(viewer)
+        viewer.destroy()
+        proc = _mpirun(2, script, "-f", str(path), *HTPPC_FLAGS)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+        assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8, proc.stdout
+    proc = _mpirun(2, script, "-case", "fem_tri", "-n", "12000", *HTPPC_FLAGS)
+    assert proc.returncode == 0 and "leaves: aggregation" in proc.stdout, proc.stdout + proc.stderr
+    assert "join rows of two ranks" in proc.stdout and "no mesh" not in proc.stdout, proc.stdout
+
+
+def test_the_whole_graphs_growth_is_the_graph_shapes():
+    """spread.global_growth (the balls of the whole graph over the ranks; here one) measures what graph_shape does: a
+    2-D grid and a 3-D grid as meshes, a random graph above sizing.EXPANDER_GROWTH, its hub rows not grown through."""
+    from petsc_htp.collective import Collective
+    from petsc_htp.twolevel.graphshape import graph_shape
+    from petsc_htp.twolevel.sizing import EXPANDER_GROWTH
+    from petsc_htp.twolevel.spread import global_growth
+
+    def growth(A):
+        A = sp.csr_matrix(A)
+        mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                  A.data), comm=PETSc.COMM_SELF)
+        return global_growth(mat, A, Collective(mat.getComm())), graph_shape(A, want_weak=False, samples=8).growth
+
+    path = sp.diags([-np.ones(39), 2 * np.ones(40), -np.ones(39)], [-1, 0, 1])
+    grid2 = sp.kronsum(path, path)
+    for A, low, high in ((grid2, 1.5, 1.8), (sp.kronsum(grid2, sp.diags([-np.ones(9), 2 * np.ones(10),
+                                                                          -np.ones(9)], [-1, 0, 1])), 2.0, 2.8),
+                         (_random_graph(12000, 3), EXPANDER_GROWTH, 8.0)):
+        whole, block = growth(A)
+        assert low <= whole <= high and abs(whole - block) < 0.5, (whole, block)
 
 
 def test_wide_stencils_and_nodes_stay_meshes():
