@@ -41,11 +41,13 @@ frames, the two-level method stays ahead (25.6 against 44.9 ms per frame at 32^3
 A graph whose balls grow faster than any mesh's (growth exponent at least :data:`EXPANDER_GROWTH`, where meshes
 give 1.6-2.7: a small-world network, such as a scale-free graph's Laplacian) gets ICC(0) of the whole matrix on one
 rank at any size, on several ICC(0) of each rank's diagonal block (PCBJACOBI; the largest growth of the blocks
-decides): its coarse operator is as small-world as the graph and costs more than it saves
+decides, or the whole graph's where a quarter of the couplings cross ranks: :mod:`.spread`): its coarse operator is
+as small-world as the graph and costs more than it saves
 (``results/expander-20261126/run.py``: Barabasi-Albert Laplacians + 0.01 I at 20 000-200 000 rows 25-205 against
 124-2 737 ms of the two-level method, 14 against 18 iterations, GAMG 1.2-12.8 s up to 60 000; a random graph with
 couplings of both signs at 20 000 and 60 000 rows 14 and 40 against 139 and 814 ms, 10 against 17 iterations;
-``ranks.sh``: the scale-free graph on 2 ranks 95 and 193 against 2 050 and 37 677 ms at 60 000 and 200 000 rows).
+``ranks.sh``: the scale-free graph on 2 ranks 95 and 199 against 2 058 and 40 679 ms at 60 000 and 200 000 rows,
+the random graph of both signs 53 against 1 281 ms at 60 000).
 
 On several ranks the same factor, of the whole matrix gathered on every rank (PCREDUNDANT), serves at the same
 sizes, and wherever a rank owns no rows (the two-level method needs rows on every rank) up to :data:`REDUNDANT_MAX`
