@@ -64,6 +64,7 @@ class TwoLevel:
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
+        self.why, self.dominant = None, False      # why the whole matrix is factored; for its rows' dominance
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -90,7 +91,7 @@ class TwoLevel:
         if kind is not None:
             from .twolevel.direct import DirectPC
 
-            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why)
+            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.dominant)
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
@@ -103,7 +104,7 @@ class TwoLevel:
         (:data:`sizing.EXPANDER_GROWTH`), :attr:`why` saying so."""
         from .twolevel import sizing
 
-        self.why = None
+        self.why, self.dominant = None, False
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
@@ -116,7 +117,8 @@ class TwoLevel:
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
-            return self._no_mesh(mat, A, coll) if coords is None else None
+            kind = self._dominant(mat, A, coll)
+            return self._no_mesh(mat, A, coll) if kind is None and coords is None else kind
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -124,6 +126,17 @@ class TwoLevel:
             return "icc"                                                  # the same in any dimension
         dim = coords.shape[1] if coords is not None else self._block_shape(mat, A).dim
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
+
+    def _dominant(self, mat, A, coll):
+        """'icc' (on several ranks 'bjacobi') where every coupled row is diagonally dominant by at least
+        :data:`.twolevel.dominance.MARGIN`, else None (collective)."""
+        from .twolevel import dominance
+
+        c = coll.min_array(np.array([dominance.margin(A, mat.getOwnershipRange()[0])]))[0]
+        if not c >= dominance.MARGIN:
+            return None
+        self.why, self.dominant = dominance.describe(c), True
+        return "icc" if coll.size == 1 else "bjacobi"
 
     def _no_mesh(self, mat, A, coll):
         """'icc' (on several ranks 'bjacobi') where the graph grows faster than any mesh's (a small-world network) in a
@@ -191,8 +204,8 @@ class TwoLevel:
         old leaves cost the last time values moved (kept across analyses of the pattern)."""
         from .twolevel.spacereuse import stale_cost
 
-        moved = analysis.moved(A, self.stale_ms)          # a DirectPC never moves
-        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved else None
+        moved = analysis.moved(A, self.stale_ms)          # a DirectPC only where its rows lost their dominance
+        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and hasattr(analysis, "leaf_its") else None
         if cost is not None:
             self.stale_ms = cost
         return moved

@@ -370,6 +370,47 @@ def test_the_whole_graphs_growth_is_the_graph_shapes():
         assert low <= whole <= high and abs(whole - block) < 0.5, (whole, block)
 
 
+def _dominant(A, c) -> sp.csr_matrix:
+    """``A`` + c diag(sum_j |a_ij|, j != i) in ``A``'s pattern (its stored zeros kept): every coupled row diagonally
+    dominant by at least the margin c."""
+    off = np.asarray(abs(A).sum(axis=1)).ravel() - np.abs(A.diagonal())
+    D = sp.csr_matrix(A, copy=True)
+    D.setdiag(A.diagonal() + c * off)
+    return D
+
+
+def test_diagonally_dominant_rows_get_icc_of_the_whole_matrix_and_lose_it_with_their_dominance(tmp_path):
+    """Above the small-matrix sizes a matrix whose coupled rows are all diagonally dominant by dominance.MARGIN or
+    more (a mass matrix plus a time step's stiffness) takes ICC(0) of the whole matrix, and -ksp_view says why; the
+    Dirichlet rows of a DMDA matrix (no couplings) do not count. New values of the same pattern that lose the
+    dominance (the stiffness alone) make a new analysis, the two-level method's, which values that regain it keep
+    (no dominance test per frame). On two ranks ICC(0) of each rank's block (PCBJACOBI). The margin is that of the
+    least dominant row."""
+    from petsc_htp.twolevel.dominance import MARGIN, margin
+
+    K, b = foreign.dmda(2, 110, 1e3, 0)
+    assert margin(K, 0) < MARGIN <= margin(_dominant(K, 2 * MARGIN), 0) < 2 * MARGIN + 1e-12
+    A = _dominant(K, 0.01)
+    reason, its, relres, ksp, mat = solve(A, b)
+    ctx = ksp.getPC().getPythonContext()
+    assert reason > 0 and relres <= 1e-8 and its <= 60, its
+    assert lines(ksp).startswith("whole matrix: ICC(0)") and "diagonally dominant" in lines(ksp)
+    for values in (K, A):
+        mat.setValuesCSR(values.indptr, values.indices, values.data)
+        mat.assemble()
+        reason, its, relres, _, _ = solve(values, b, mat=mat, ksp=ksp)
+        assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
+    D = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
+                              comm=PETSc.COMM_SELF)
+    path = tmp_path / "dominant.petsc"
+    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
+    D.view(viewer)
+    viewer.destroy()
+    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+    assert proc.returncode == 0 and "diagonally dominant" in proc.stdout, proc.stdout + proc.stderr
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
+
+
 def test_wide_stencils_and_nodes_stay_meshes():
     """The graph of a 27-point 3-D stencil, and of the same with 3 unknowns per node (elasticity's pattern), grows as a
     mesh's, well below sizing.EXPANDER_GROWTH, so such matrices above the small sizes keep the two-level method."""

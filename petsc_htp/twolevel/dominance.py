@@ -1,0 +1,40 @@
+"""Diagonal dominance: where every coupled row's diagonal exceeds the sum of its off-diagonal magnitudes by a margin
+c (a_ii >= (1 + c) sum_j |a_ij|: a mass matrix plus a time step's stiffness, a shifted operator), Gershgorin puts
+Jacobi's preconditioned spectrum in [c / (1 + c), (2 + c) / (1 + c)], a condition number of at most (2 + c) / c
+whatever N, and ICC(0) of the whole matrix converges in a number of iterations that no coarse space improves on for
+its cost.
+
+Measured (one rank, fresh KSP, CG to rtol 1e-8; A = K + c diag(sum_j |k_ij|) for the foreign study's matrices K at
+64k rows, 2026-11-26): at c = 0.003 ICC(0) took 0.34-0.76 x the two-level method's time (DMDA 2-D 90 against 178 ms,
+3-D 60 against 176, free surface 66 against 142, log-normal 91 against 148, P1 tets 268 against 480, P1 triangles
+numbered at random 227 against 300; 16 384 rows of DMDA 20 against 49), at c = 0.01 0.25-0.41 x, at c = 0.001
+0.78-1.11 x (the triangles, whose random numbering slows ICC(0), 319 against 288 ms), so the rule takes
+:data:`MARGIN` = 0.003. ICC(0)'s iterations (80 at c = 0.003 in 2-D, 45 at 0.01) do not grow with N, the two-level
+method's cost per row does. PETSc-free.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .csr import row_sums
+
+MARGIN = 0.003      # dominance margin c from which ICC(0) of the whole matrix beats the two-level method
+
+
+def margin(rows, start) -> float:
+    """The smallest margin c_i = a_ii / sum_j |a_ij| - 1 (j != i) over this rank's ``rows`` (CSR, global columns,
+    local rows from ``start``) that hold a nonzero off-diagonal entry (inf where none does; negative where a
+    diagonal is not above its row's off-diagonal sum)."""
+    diag = rows.diagonal(k=start)
+    off = row_sums(rows.indptr, np.abs(rows.data)) - np.abs(diag)
+    coupled = off > 0
+    if not coupled.any():
+        return float("inf")
+    ratio = diag[coupled] / off[coupled]
+    return float(ratio.min() - 1.0)
+
+
+def describe(c) -> str:
+    """Why ICC(0) serves a matrix of margin ``c`` (``-ksp_view``)."""
+    return (f"its rows are diagonally dominant (every diagonal at least {1 + c:.4g} x its row's off-diagonal sum): "
+            f"Jacobi's condition number is at most {(2 + c) / c:.3g} at any size, and no coarse space pays")
