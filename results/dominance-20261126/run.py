@@ -5,8 +5,10 @@ whole matrix from c = dominance.MARGIN), its two-level method (-htp_direct_max 0
 ICC(0), Jacobi and GAMG (options/cg_gamg.opts' settings). Median of 3 solves per method after one warm-up, methods
 interleaved. Prints "case N c method: ms iterations".
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/dominance-20261126/run.py [N ...] \\
-        > results/dominance-20261126/out.txt
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/dominance-20261126/run.py [N [CASE ...]] \\
+        >> results/dominance-20261126/out.txt
+
+(N 65 536 and every case below by default; GAMG is left out above 300 000 rows.)
 """
 import statistics
 import subprocess
@@ -23,7 +25,6 @@ from petsc4py import PETSc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-import petsc_htp  # noqa: E402
 from petsc_htp.bench.foreigncases import CASES  # noqa: E402
 
 METHODS = {"htppc": {"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"},
@@ -64,33 +65,33 @@ def solve(mat, b, opts):
 
 
 def main():
-    sizes = [int(a) for a in sys.argv[1:]] or [65536]
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 65536
+    cases = sys.argv[2:] or ["dmda2d", "dmda3d", "free_surface", "lognormal", "fem_tri", "fem_tet"]
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
                             text=True).stdout.strip()
     print(f"# {time.strftime('%Y-%m-%d')}, commit {commit}; median ms of 3 (iterations)")
-    for n in sizes:
-        for case in ("dmda2d", "dmda3d", "free_surface", "lognormal", "fem_tri", "fem_tet"):
-            K = CASES[case](n, 0)[0].tocsr()
-            b = np.random.default_rng(1).standard_normal(K.shape[0])
-            for c in (0.001, 0.003, 0.01, 0.1):
-                A = dominant(K, c)
-                mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
-                                                          A.indices.astype(PETSc.IntType), A.data),
-                                            comm=PETSc.COMM_SELF)
-                mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-                runs = {m: [] for m in METHODS}
-                for rnd in range(4):
-                    for m, opts in METHODS.items():
-                        if m == "gamg" and K.shape[0] > 300000:
-                            continue
-                        ms, its = solve(mat, b, opts)
-                        if rnd:
-                            runs[m].append((ms, its))
-                for m, r in runs.items():
-                    if r:
-                        print(f"{case} {K.shape[0]} {c} {m}: {statistics.median(x[0] for x in r):.1f} "
-                              f"({r[0][1]})", flush=True)
-                mat.destroy()
+    for case in cases:
+        K = CASES[case](n, 0)[0].tocsr()
+        b = np.random.default_rng(1).standard_normal(K.shape[0])
+        for c in (0.001, 0.003, 0.01, 0.1):
+            A = dominant(K, c)
+            mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType),
+                                                      A.indices.astype(PETSc.IntType), A.data),
+                                        comm=PETSc.COMM_SELF)
+            mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+            runs = {m: [] for m in METHODS}
+            for rnd in range(4):
+                for m, opts in METHODS.items():
+                    if m == "gamg" and K.shape[0] > 300000:
+                        continue
+                    ms, its = solve(mat, b, opts)
+                    if rnd:
+                        runs[m].append((ms, its))
+            for m, r in runs.items():
+                if r:
+                    print(f"{case} {K.shape[0]} {c} {m}: {statistics.median(x[0] for x in r):.1f} "
+                          f"({r[0][1]})", flush=True)
+            mat.destroy()
 
 
 if __name__ == "__main__":
