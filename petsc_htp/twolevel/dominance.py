@@ -4,13 +4,13 @@ Jacobi's preconditioned spectrum in [c / (1 + c), (2 + c) / (1 + c)], a conditio
 whatever N, and ICC(0) of the whole matrix converges in a number of iterations that no coarse space improves on for
 its cost.
 
-Measured (one rank, fresh KSP, CG to rtol 1e-8; A = K + c diag(sum_j |k_ij|) for the foreign study's matrices K at
-64k rows, 2026-11-26): at c = 0.003 ICC(0) took 0.34-0.76 x the two-level method's time (DMDA 2-D 90 against 178 ms,
-3-D 60 against 176, free surface 66 against 142, log-normal 91 against 148, P1 tets 268 against 480, P1 triangles
-numbered at random 227 against 300; 16 384 rows of DMDA 20 against 49), at c = 0.01 0.25-0.41 x, at c = 0.001
-0.78-1.11 x (the triangles, whose random numbering slows ICC(0), 319 against 288 ms), so the rule takes
-:data:`MARGIN` = 0.003. ICC(0)'s iterations (80 at c = 0.003 in 2-D, 45 at 0.01) do not grow with N, the two-level
-method's cost per row does. PETSc-free.
+Measured (``results/dominance-20261126/run.py``: one rank, fresh KSP, CG to rtol 1e-8; A = K + c diag(sum_j
+|k_ij|) for the foreign study's matrices K at 64k rows): at c = 0.003 ICC(0) of the whole matrix took 0.33-0.89 x the
+two-level method's time (DMDA 2-D 77 against 138 ms, 3-D 66 against 201, free surface 67 against 107, log-normal
+76 against 130, P1 triangles numbered at random 195 against 220; 1M rows of DMDA 1 856 against 3 540), at c = 0.01
+0.23-0.52 x, at c = 0.001 0.44-1.34 x (the triangles, whose random numbering slows ICC(0), 299 against 224 ms), so
+the rule starts at :data:`MARGIN` (a margin of 0.003 computed with rounding must pass). ICC(0)'s iterations (80 at c
+= 0.003 in 2-D, 45 at 0.01) do not grow with N; the two-level method's cost per row does. PETSc-free.
 """
 from __future__ import annotations
 
