@@ -49,6 +49,9 @@ couplings of both signs at 20 000 and 60 000 rows 14 and 40 against 139 and 814 
 ``ranks.sh``: the scale-free graph on 2 ranks 95 and 199 against 2 058 and 40 679 ms at 60 000 and 200 000 rows,
 the random graph of both signs 53 against 1 281 ms at 60 000).
 
+Rows that are all diagonally dominant by a margin (a mass matrix plus a time step's stiffness) get ICC(0) of the
+whole matrix at any size too, of each rank's block on several (:mod:`.dominance`).
+
 On several ranks the same factor, of the whole matrix gathered on every rank (PCREDUNDANT), serves at the same
 sizes, and wherever a rank owns no rows (the two-level method needs rows on every rank) up to :data:`REDUNDANT_MAX`
 rows: ``mpiexec -n 2 python examples/dmda_poisson.py -n N -warmup`` with HTPPC as it comes (above 8 000 rows
