@@ -710,10 +710,8 @@ def test_coarse_solver_by_the_problem():
     assert sizing.coarse_options(3, True, "lu")["pc_type"] == "redundant"
     assert sizing.coarse_options(3, True, "gamg")["pc_type"] == "gamg"
     order = "pc_factor_mat_ordering_type"
-    big_2d = sizing.COARSE_ND_ROWS + 1                        # a large 2-D coarse LU: nested dissection
-    assert sizing.coarse_options(2, False, "lu", rows=1000)[order] == "qmd"
-    assert sizing.coarse_options(2, False, "lu", rows=big_2d)[order] == "nd"
-    assert sizing.coarse_options(2, True, "lu", rows=big_2d)["redundant_" + order] == "nd"
+    assert sizing.coarse_options(2, False, "lu")[order] == "nd" == sizing.coarse_options(3, False, "lu")[order]
+    assert sizing.coarse_options(2, True, "lu")["redundant_" + order] == "nd"
     big = (limit + 1) * sizing.LEAF[3]                       # its coarse operator at the usual leaf size: AMG
     assert (sizing.leaf_size(3, limit * sizing.LEAF[3]), sizing.leaf_size(3, big)) == (64, sizing.LEAF_AMG[3])
     assert sizing.leaf_size(2, 10 ** 8) == 32
@@ -769,7 +767,7 @@ def test_large_coarse_lu_takes_metis_order_of_the_leaves(monkeypatch, tmp_path):
     ksp.view(viewer)
     viewer.destroy()
     assert "coarse columns in METIS's nested-dissection order" in (tmp_path / "view.txt").read_text()
-    assert sizing.coarse_options(2, False, "lu", rows=10 ** 6, ordered=True)["pc_factor_mat_ordering_type"] == "natural"
+    assert sizing.coarse_options(2, False, "lu", ordered=True)["pc_factor_mat_ordering_type"] == "natural"
     assert [sizing.metis_ordered(s, 3, 10 ** 6) for s in ("lu", "auto", "gamg")] == [True, False, False]
 
 

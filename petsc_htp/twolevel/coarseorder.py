@@ -16,11 +16,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .graphshape import HUB
+
 
 def leaf_order(lay, rows) -> np.ndarray:
     """The order of one rank's leaves (position i holds leaf ``order[i]``): METIS's nested dissection of the
-    leaves coupled only within the rank (an edge where A's ``rows`` couple two leaves: O's entries), then the
-    leaves coupled to other ranks'."""
+    leaves coupled only within the rank (an edge where A's ``rows`` couple two leaves: O's entries), but for hubs
+    (leaves coupled to more than :data:`.graphshape.HUB` times the typical leaf's neighbours: a dense row's), then the
+    hubs, then the leaves coupled to other ranks'."""
     leaf_of = lay.leaf[lay.iperm]
     col = rows.indices[lay.o_src].astype(np.int64) - lay.start
     local = (col >= 0) & (col < lay.n)
@@ -35,7 +38,14 @@ def leaf_order(lay, rows) -> np.ndarray:
     keep = (r >= 0) & (c >= 0) & (r != c)
     G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int32), (r[keep], c[keep])), shape=(inner.size,) * 2)
     G = (G + G.T).tocsr()
-    return np.concatenate([inner[nested_dissection(G)], np.flatnonzero(interface)])
+    degree = np.diff(G.indptr)
+    hub = degree > HUB * max(float(np.median(degree)) if degree.size else 0.0, 1.0)
+    if hub.any():                   # a dense row's leaves go last, as a separator would: METIS took 130 against 60 ms
+        rest = np.flatnonzero(~hub)
+        order = np.concatenate([rest[nested_dissection(G[rest][:, rest].tocsr())], np.flatnonzero(hub)])
+    else:
+        order = nested_dissection(G)
+    return np.concatenate([inner[order], np.flatnonzero(interface)])
 
 
 def nested_dissection(G) -> np.ndarray:

@@ -37,7 +37,8 @@ class CoarseSolve:
     def __init__(self, st, solver, prefix):
         self.st, self.prefix, self.pc, self.rest = st, prefix, None, {}
         self.solver = solver if solver != "auto" else sizing.coarse_solver(st.dim, st.m, st.coll.size,
-                                                                           st.leaves.kind, st.fixed, st.linear)
+                                                                           st.leaves.kind, st.fixed, st.linear,
+                                                                           st.dense)
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind, near=st.fixed)   # else balanced (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
@@ -48,7 +49,7 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
-            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.m, st.ordered,
+            defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.ordered,
                                              st.fixed)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
@@ -145,8 +146,9 @@ class CoarseSolve:
             st = self.st
             limit = sizing.direct_limit(st.dim, st.coll.size, st.leaves.kind, st.fixed)
             several = " on several ranks" if st.dim == 2 and st.coll.size > 1 else ""
-            why = (f" (by the problem: {st.m} rows; direct at any size on a chain, whose LU does not fill)"
-                   if st.linear else f" (by the problem: {st.m} rows; direct up to {limit}{several} in {st.dim}-D)")
+            why = (f"direct up to {limit}{several} in {st.dim}-D" if not (st.linear or st.dense and st.m > limit)
+                   else "direct at any size " + ("on a chain, whose LU does not fill" if st.linear else "with a dense row"))
+            why = f" (by the problem: {st.m} rows; {why})"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
                   else "")

@@ -119,16 +119,23 @@ def _ball_sizes(A, seeds, radius) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
-def _without_hubs(A):
-    """``A``, or where some rows hold more than :data:`HUB` times the median row's stored entries (a dense row: a
-    constraint, a ground node) a copy in which those rows couple nothing, so the balls reach them but do not grow
-    through them: an arrow matrix's dense row put every row within distance 2 of every seed, and the search over a
-    20 000-row one took 1.1 s (the dimension then came out as that of the rest of the graph)."""
-    count = np.diff(A.indptr)
+def hub_rows(indptr) -> np.ndarray:
+    """Which rows of a CSR matrix with row pointer ``indptr`` hold more than :data:`HUB` times the median row's
+    stored entries (a sample's median): dense rows, such as a constraint's or a ground node's."""
+    count = np.diff(indptr)
     typical = float(np.median(count[::max(1, count.size // 4096)])) if count.size else 0.0
-    hub = count > HUB * max(typical, 1.0)
+    return count > HUB * max(typical, 1.0)
+
+
+def _without_hubs(A):
+    """``A``, or where some rows are hubs (:func:`hub_rows`) a copy in which those rows couple nothing, so the balls
+    reach them but do not grow through them: an arrow matrix's dense row put every row within distance 2 of every
+    seed, and the search over a 20 000-row one took 1.1 s (the dimension then came out as that of the rest of the
+    graph)."""
+    hub = hub_rows(A.indptr)
     if not hub.any():
         return A
+    count = np.diff(A.indptr)
     data = A.data.copy()
     data[np.repeat(hub, count)] = 0.0
     return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)

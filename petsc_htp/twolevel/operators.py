@@ -17,7 +17,10 @@ from .leafsolvers import seqaij
 
 RAP_MAX_ROWS = 262144   # one rank: rows up to which E = W^T A W takes PETSc's 'rap' PtAP, which keeps W^T and A W for
 # its numeric reuse: on the own frames at 65 536 rows (sequence study) 4.2 against 4.7 ms per frame's products; at
-# 1024^2 (the DMDA program) the default PtAP takes 169 against 202 ms and the peak RSS is 727 against 777 MB
+# 1024^2 (the DMDA program) the default PtAP takes 169 against 202 ms and the peak RSS is 727 against 777 MB. A
+# matrix with a dense row (graphshape.hub_rows; Structure.dense) takes 'rap' at any size: the default's symbolic
+# step grows with the square of that row's length (a row coupled to every row of a 263 169-row DMDA matrix: 1 075
+# against 78 ms of products)
 
 
 def _csr(rows, cols, n) -> tuple:
@@ -95,6 +98,7 @@ class Operators:
         lay, comm = st.lay, mat.getComm()
         n, N = lay.n, st.N
         self.mat, self.st = mat, st
+        self._rap = st.coll.size == 1 and (st.N <= RAP_MAX_ROWS or st.dense)
         self.o_perm_rows = compact(lay.iperm[lay.o_rows], n)         # O's rows in the leaves' order
         self.W = self.C = self.E = self.F = self.AW = self.Eb = self._lift = None
         self._o = Pattern(comm, lay.o_rows.astype(np.int64) + lay.start, rows.indices[lay.o_src], (N, N), (n, n))
@@ -118,7 +122,7 @@ class Operators:
         self.C = self.O.matMult(self.W, result=self.C)
         if not exact:
             self.AW = self.mat.matMult(self.W, result=self.AW)
-        if first and self.st.coll.size == 1 and self.st.N <= RAP_MAX_ROWS:
+        if first and self._rap:
             with scoped(self.mat.getOptionsPrefix() or "", {"matptap_via": "rap"}):
                 self.E = self.mat.ptap(self.W)
         else:

@@ -13,9 +13,9 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
   coarse operator's graph is 3-D too: nested dissection halves its LU's fill against QMD. A bare 3-D matrix's
   aggregation leaves are paired as well (:func:`aggregation`); their coarse operator, of N/10 rows, fills fast
   under an LU (2 289 rows of a 64 000-row DMDA matrix: 510 000 factor entries, 46 ms) and takes two GAMG
-  V-cycles in the deflated form above :data:`COARSE_PAIRED_DIRECT_MAX_3D` rows (:func:`coarse_exact`). A 2-D coarse
-  operator is ordered by QMD, by nested dissection above :data:`COARSE_ND_ROWS` rows (:func:`coarse_options`);
-  from :data:`COARSE_METIS_ROWS` rows its columns come ordered by METIS (:mod:`.coarseorder`).
+  V-cycles in the deflated form above :data:`COARSE_PAIRED_DIRECT_MAX_3D` rows (:func:`coarse_exact`). A coarse
+  operator is ordered by nested dissection (:func:`coarse_options`); from :data:`COARSE_METIS_ROWS` rows its columns
+  come ordered by METIS (:mod:`.coarseorder`).
 
 The coarse operator is factored (LU, redundantly on every rank of a parallel matrix: PCREDUNDANT) while it
 is small; in 2-D on several ranks above :data:`COARSE_REDUNDANT_MAX` rows (aggregation leaves), and on one
@@ -74,9 +74,7 @@ LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
 FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
-COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "qmd", "pc_factor_shift_type": "nonzero"}
-COARSE_ORDERING = {2: "qmd", 3: "nd"}
-COARSE_ND_ROWS = 65536                      # coarse rows above which a 2-D coarse LU is ordered by nested dissection
+COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
 COARSE_METIS_SCALAR_ROWS = 40000            # ... where leaves take one column per piece (metis_ordered)
 COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
@@ -177,7 +175,7 @@ def leaf_factor(dim: int, kind: str) -> dict:
 
 
 def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
-                  linear: bool = False) -> str:
+                  linear: bool = False, dense: bool = False) -> str:
     """'lu' or 'gamg' for a coarse operator of ``rows`` rows in ``dim`` dimensions on ``ranks`` ranks, of leaves of
     ``kind``. A 2-D LU grows faster than its rows and is redundant on several ranks (each factors the whole
     operator, and two ranks factoring at once slow each other down), so above :data:`COARSE_REDUNDANT_MAX` rows on
@@ -203,8 +201,12 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     A ``linear`` graph (a chain, :func:`chain`) keeps the LU at any size: its
     coarse operator is a chain too, whose LU does not fill, and whose conditioning (1e9 at 16 000 coarse rows) the
     V-cycles did not meet: a 1-D Laplacian of 100 000 rows on 2 ranks ran to 5 000 iterations and one of
-    1 000 000 on one rank to 1 000 (``DIVERGED_ITS``), against 6 each with the LU (1.7 s at 1M, GAMG 3.6)."""
-    return "lu" if linear or rows <= direct_limit(dim, ranks, kind, near) else "gamg"
+    1 000 000 on one rank to 1 000 (``DIVERGED_ITS``), against 6 each with the LU (1.7 s at 1M, GAMG 3.6). So does an
+    operator with a ``dense`` row (:func:`.graphshape.hub_rows`: a constraint coupled to every row), whose coarse
+    operator has one too: GAMG's setup on it did not end in 5 minutes at 1M rows (158 799 coarse rows), and PETSc's
+    GAMG on the 65 537-row matrix itself stopped with a segmentation fault; the LU takes it last (:mod:`.coarseorder`,
+    nested dissection)."""
+    return "lu" if linear or dense or rows <= direct_limit(dim, ranks, kind, near) else "gamg"
 
 
 def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> int:
@@ -248,7 +250,7 @@ def coarse_exact(dim: int, solver: str, kind: str = "aggregation", cycles=None, 
 
 
 def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = "aggregation", near: int = 0,
-                  block: int = 2, linear: bool = False) -> bool:
+                  block: int = 2, linear: bool = False, dense: bool = False) -> bool:
     """Whether the coarse columns get METIS's order (:mod:`.coarseorder`): a coarse LU ('lu', or 'auto' choosing
     it for leaves of ``kind`` and ``near`` near null vectors) of at least :data:`COARSE_METIS_ROWS` rows whose
     leaves take ``block`` > 1 columns per piece, or :data:`COARSE_METIS_SCALAR_ROWS` rows of one column per piece
@@ -256,12 +258,11 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
     (``examples/dmda_poisson.py -n N -warmup``, 3 runs each, setup + solve ms against that ordering: 512^2, 23 000
     coarse rows, METIS 769-807 against 742-825; 768^2, 52 000, 1 872-2 070 against 1 997-2 044; 1024^2, 92 000,
     3 734-3 762 against 3 804-3 837, an LU of 6.1 against 8.3 million values)."""
-    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near, linear) == "lu")
+    lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near, linear, dense) == "lu")
     return lu and not linear and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
 
 
-def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: int = 0, ordered=False,
-                   near: int = 0) -> dict:
+def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", ordered=False, near: int = 0) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
     'gamg' (V-cycles set up afresh each numeric step: a reused interpolation costs more iterations than it saves)
     in ``dim`` dimensions: two V-cycles an application in the deflated form in 2-D (:data:`COARSE_AMG_2D`) and on
@@ -273,16 +274,17 @@ def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", rows: 
     iterations, 0.1: 53); on 2 ranks at 2048^2 (``mpiexec -n 2 python examples/dmda_poisson.py -n 2048 -warmup``,
     the paired aggregates' 368 000 coarse rows, one V-cycle with Chebyshev(3) then) 0.01-0.03 takes 40 outer
     iterations and 13.1-14.6 s, 0.05 46 and 15.1 s (threshold 0: 94 iterations, 0.1: 100); at 1024^2 37 against 38
-    iterations. The LU of a coarse operator of ``rows`` rows above :data:`COARSE_ND_ROWS` is ordered by nested
-    dissection in any dimension: on bare 2-D DMDA matrices (``examples/dmda_poisson.py``) QMD and ND tie at 42 430
-    and 61 100 coarse rows (640^2 and 768^2: 356/358 and 642/636 ms) and ND factors 107 000 rows (1024^2) in 1317
-    against 1631 ms. A coarse operator whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
+    iterations. The coarse LU is ordered by nested dissection: on bare 2-D DMDA matrices (``examples/dmda_poisson.py``)
+    QMD and ND tie at 42 430 and 61 100 coarse rows (640^2 and 768^2: 356/358 and 642/636 ms) and ND factors 107 000
+    rows (1024^2) in 1317 against 1631 ms; below, the foreign study's 2-D matrices at 16k and 64k rows (1 300-8 400
+    coarse rows) and the own frames in sequence mode tie within 1-5 % either way, but a dense row (a constraint
+    coupled to every row of a 64k DMDA matrix) took QMD 472 ms against ND's 42 (natural: 331 s). A coarse operator
+    whose columns came ``ordered`` (:mod:`.coarseorder`) keeps its order."""
     if solver == "gamg":
         if dim == 2:
             return dict(COARSE_AMG_2D)
         if kind != "aggregation":
             return dict(COARSE_AMG)
         return dict(COARSE_AMG_3D if near else COARSE_AMG_3D_PAIRED)
-    ordering = "natural" if ordered else "nd" if rows > COARSE_ND_ROWS else COARSE_ORDERING[dim]
-    opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": ordering}
+    opts = {**COARSE_FACTOR, "pc_factor_mat_ordering_type": "natural" if ordered else "nd"}
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if parallel else opts

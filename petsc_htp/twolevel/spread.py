@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .csr import row_entries
-from .graphshape import HUB, RADIUS
+from .graphshape import RADIUS, hub_rows
 
 CROSSING = 0.25     # share of off-diagonal couplings between ranks from which the whole graph's growth is measured
 # (meshes in their program's order: 0.2 % on 2 ranks; rows at random over p ranks: 1 - 1/p)
@@ -39,14 +39,13 @@ def global_growth(mat, rows, coll, seed=0) -> float:
     :data:`.graphshape.RADIUS`): a breadth-first search from the seeds whose balls every rank holds, each rank
     expanding the rows it owns and one allgather of the rows reached per step (the work is the balls' size, as in
     :func:`.graphshape.graph_shape`: 0.6-1 ms on meshes at 64k rows); rows holding more than
-    :data:`.graphshape.HUB` times the median row's entries are reached but not grown through. nan where too few
+    :func:`.graphshape.hub_rows` are reached but not grown through. nan where too few
     coupled rows were found."""
     N, (start, end) = mat.getSize()[0], mat.getOwnershipRange()
     seeds = _seeds(rows, start, N, coll, np.random.default_rng(seed))
     if seeds.size < SAMPLES:
         return float("nan")
-    count = np.diff(rows.indptr)
-    hub = count > HUB * max(float(np.median(count)) if count.size else 0.0, 1.0)
+    hub = hub_rows(rows.indptr)
     ball = frontier = np.sort(np.arange(seeds.size, dtype=np.int64) * N + seeds)
     sizes = []
     for step in range(1, 2 * RADIUS + 1):

@@ -17,7 +17,7 @@ from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values
 from .aggregation import THETA, sampled_shares, threshold
 from .csr import compact, row_entries
-from .graphshape import graph_shape
+from .graphshape import graph_shape, hub_rows
 from .leaflayout import layout
 from .leaves import choose_leaves
 
@@ -76,7 +76,8 @@ class Structure:
         self.fixed, self.attached = nearnull.count(mat, self.bs), nearnull.attached(mat)
         self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
-        self.linear = sizing.chain(coll.max_array(np.array([_growth(self.shape)]))[0], self.per_row)
+        growth, self.dense = coll.max_array(np.array([_growth(self.shape)]))[0], coll.any(hub_rows(rows.indptr).any())
+        self.linear = sizing.chain(growth, self.per_row)
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
         self.cfg = cfg = self.resolved(cfg, coords is None)
@@ -98,8 +99,7 @@ class Structure:
             where, owner = row_entries(lay.d_indptr, picked)
             r, c = picked[owner], lay.d_indices[where]
             off = r != c
-            leaf_row = lay.d_leaf_row
-            diag_src = lay.d_src[lay.d_diag[leaf_row[r[off]]]], lay.d_src[lay.d_diag[leaf_row[c[off]]]]
+            diag_src = lay.d_src[lay.d_diag[lay.d_leaf_row[r[off]]]], lay.d_src[lay.d_diag[lay.d_leaf_row[c[off]]]]
             self._weak = (lay.d_src[where[off]],) + diag_src
         return self._weak
 
@@ -209,7 +209,7 @@ class Structure:
         first = self.coll.exscan(self.ncols.sum())
         self.m = self.coll.sum(self.ncols.sum())
         self.ordered = sizing.metis_ordered(cfg.solver, self.dim, self.m, self.coll.size, self.leaves.kind,
-                                            self.fixed, lead + 1, self.linear)
+                                            self.fixed, lead + 1, self.linear, self.dense)
         order = coarseorder.leaf_order(lay, rows) if self.ordered else np.arange(lv.n_leaves)
         self.leaf_col = np.empty(lv.n_leaves, dtype=np.int64)
         self.leaf_col[order] = first + np.concatenate(([0], np.cumsum(self.ncols[order])[:-1]))
