@@ -414,7 +414,7 @@ def test_diagonally_dominant_rows_get_icc_of_the_whole_matrix_and_lose_it_with_t
 def test_a_dense_row_is_ordered_last_and_keeps_the_coarse_lu(tmp_path):
     """A constraint coupled to every row of a DMDA matrix (an SPD arrow matrix): Structure.dense, E = W^T A W by
     PETSc's 'rap' PtAP, the coarse LU ordered by nested dissection (QMD took 472 ms against 42 on such a 64k matrix,
-    natural 331 s) and kept at any size (GAMG's setup on it did not end), METIS's leaf order with the dense row's leaf
+    natural 331 s) and kept at any size (GAMG's setup on it did not end at 1M rows), METIS's leaf order with the dense row's leaf
     last; CG converges as without the row."""
     from petsc_htp.twolevel import coarseorder
 

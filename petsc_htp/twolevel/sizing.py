@@ -203,9 +203,9 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     V-cycles did not meet: a 1-D Laplacian of 100 000 rows on 2 ranks ran to 5 000 iterations and one of
     1 000 000 on one rank to 1 000 (``DIVERGED_ITS``), against 6 each with the LU (1.7 s at 1M, GAMG 3.6). So does an
     operator with a ``dense`` row (:func:`.graphshape.hub_rows`: a constraint coupled to every row), whose coarse
-    operator has one too: GAMG's setup on it did not end in 5 minutes at 1M rows (158 799 coarse rows), and PETSc's
-    GAMG on the 65 537-row matrix itself stopped with a segmentation fault; the LU takes it last (:mod:`.coarseorder`,
-    nested dissection)."""
+    operator has one too: GAMG's setup on it did not end in 5 minutes at 1M rows (158 799 coarse rows;
+    ``results/denserow-20261126``), where the LU, which takes the dense row last (:mod:`.coarseorder`, nested
+    dissection), factors it in 1.5 s."""
     return "lu" if linear or dense or rows <= direct_limit(dim, ranks, kind, near) else "gamg"
 
 
