@@ -100,8 +100,9 @@ class TwoLevel:
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
         every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
-        (collective); on one rank above those sizes ICC(0) where the graph is no mesh
-        (:data:`sizing.EXPANDER_GROWTH`), :attr:`why` saying so."""
+        (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi') where the rows are
+        diagonally dominant (:meth:`_dominant`) or, bare, the graph is no mesh (:meth:`_no_mesh`), :attr:`why` saying
+        so."""
         from .twolevel import sizing
 
         self.why, self.dominant = None, False
@@ -132,7 +133,8 @@ class TwoLevel:
         :data:`.twolevel.dominance.MARGIN`, else None (collective)."""
         from .twolevel import dominance
 
-        c = coll.min_array(np.array([dominance.margin(A, mat.getOwnershipRange()[0])]))[0]
+        c = dominance.margin(A, mat.getOwnershipRange()[0])
+        c = coll.min_array(np.array([c if c == c else -np.inf]))[0]       # nan (none so far) would split the ranks
         if not c >= dominance.MARGIN:
             return None
         self.why, self.dominant = dominance.describe(c), True
@@ -205,7 +207,8 @@ class TwoLevel:
         from .twolevel.spacereuse import stale_cost
 
         moved = analysis.moved(A, self.stale_ms)          # a DirectPC only where its rows lost their dominance
-        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and hasattr(analysis, "leaf_its") else None
+        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and not getattr(analysis, "whole", False) \
+            else None
         if cost is not None:
             self.stale_ms = cost
         return moved

@@ -16,14 +16,15 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .graphshape import HUB
+from .graphshape import hub_rows
 
 
 def leaf_order(lay, rows) -> np.ndarray:
     """The order of one rank's leaves (position i holds leaf ``order[i]``): METIS's nested dissection of the
     leaves coupled only within the rank (an edge where A's ``rows`` couple two leaves: O's entries), but for hubs
-    (leaves coupled to more than :data:`.graphshape.HUB` times the typical leaf's neighbours: a dense row's), then the
-    hubs, then the leaves coupled to other ranks'."""
+    (:func:`.graphshape.hub_rows` of the leaf graph: a dense row's leaf), then the hubs, then the leaves coupled to
+    other ranks' (one rank: a dense row is coupled within it; on several :func:`.sizing.metis_ordered` leaves the
+    order to PETSc)."""
     leaf_of = lay.leaf[lay.iperm]
     col = rows.indices[lay.o_src].astype(np.int64) - lay.start
     local = (col >= 0) & (col < lay.n)
@@ -38,8 +39,7 @@ def leaf_order(lay, rows) -> np.ndarray:
     keep = (r >= 0) & (c >= 0) & (r != c)
     G = sp.csr_matrix((np.ones(int(keep.sum()), dtype=np.int32), (r[keep], c[keep])), shape=(inner.size,) * 2)
     G = (G + G.T).tocsr()
-    degree = np.diff(G.indptr)
-    hub = degree > HUB * max(float(np.median(degree)) if degree.size else 0.0, 1.0)
+    hub = hub_rows(G.indptr, G.shape[0] ** 0.5)
     if hub.any():                   # a dense row's leaves go last, as a separator would: METIS took 130 against 60 ms
         rest = np.flatnonzero(~hub)
         order = np.concatenate([rest[nested_dissection(G[rest][:, rest].tocsr())], np.flatnonzero(hub)])

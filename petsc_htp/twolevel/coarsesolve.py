@@ -146,8 +146,8 @@ class CoarseSolve:
             st = self.st
             limit = sizing.direct_limit(st.dim, st.coll.size, st.leaves.kind, st.fixed)
             several = " on several ranks" if st.dim == 2 and st.coll.size > 1 else ""
-            why = (f"direct up to {limit}{several} in {st.dim}-D" if not (st.linear or st.dense and st.m > limit)
-                   else "direct at any size " + ("on a chain, whose LU does not fill" if st.linear else "with a dense row"))
+            why = (f"direct up to {limit}{several} in {st.dim}-D" if not (st.linear or st.dense and st.m > limit) else
+                   "direct at any size " + ("on a chain, whose LU does not fill" if st.linear else "with a dense row"))
             why = f" (by the problem: {st.m} rows; {why})"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine

@@ -50,7 +50,7 @@ class DirectPC:
     rows : scipy.sparse.csr_matrix
         This rank's rows (the analysed pattern).
     kind : str
-        cholesky or icc (:data:`FACTORS`).
+        cholesky or icc (:data:`FACTORS`), or bjacobi (ICC(0) of each rank's block: :func:`factor_options`).
     prefix : str
         Options prefix of the factor: ``<prefix>leaf_``.
     why : str, optional

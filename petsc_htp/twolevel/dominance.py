@@ -23,7 +23,7 @@ MARGIN = 0.0025     # dominance margin c from which ICC(0) of the whole matrix b
 
 def margin(rows, start) -> float:
     """The smallest margin c_i = a_ii / sum_j |a_ij| - 1 (j != i) over this rank's ``rows`` (CSR, global columns,
-    local rows from ``start``) that hold a nonzero off-diagonal entry (inf where none does; negative where a
+    local rows from ``start``) that hold a nonzero off-diagonal entry (inf where none does; 0 or less where a
     diagonal is not above its row's off-diagonal sum)."""
     diag = rows.diagonal(k=start)
     off = row_sums(rows.indptr, np.abs(rows.data)) - np.abs(diag)
@@ -36,5 +36,7 @@ def margin(rows, start) -> float:
 
 def describe(c) -> str:
     """Why ICC(0) serves a matrix of margin ``c`` (``-ksp_view``)."""
+    if c == float("inf"):
+        return "its rows hold no nonzero off-diagonal entry: ICC(0) is exact"
     return (f"its rows are diagonally dominant (every diagonal at least {1 + c:.4g} x its row's off-diagonal sum): "
             f"Jacobi's condition number is at most {(2 + c) / c:.3g} at any size, and no coarse space pays")

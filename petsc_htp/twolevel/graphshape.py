@@ -119,12 +119,13 @@ def _ball_sizes(A, seeds, radius) -> np.ndarray:
     return np.array(out, dtype=float)
 
 
-def hub_rows(indptr) -> np.ndarray:
+def hub_rows(indptr, least=0.0) -> np.ndarray:
     """Which rows of a CSR matrix with row pointer ``indptr`` hold more than :data:`HUB` times the median row's
-    stored entries (a sample's median): dense rows, such as a constraint's or a ground node's."""
+    stored entries (a sample's median) and more than ``least``: dense rows, such as a constraint's or a ground
+    node's."""
     count = np.diff(indptr)
     typical = float(np.median(count[::max(1, count.size // 4096)])) if count.size else 0.0
-    return count > HUB * max(typical, 1.0)
+    return count > max(HUB * max(typical, 1.0), least)
 
 
 def _without_hubs(A):
@@ -135,9 +136,8 @@ def _without_hubs(A):
     hub = hub_rows(A.indptr)
     if not hub.any():
         return A
-    count = np.diff(A.indptr)
     data = A.data.copy()
-    data[np.repeat(hub, count)] = 0.0
+    data[np.repeat(hub, np.diff(A.indptr))] = 0.0
     return sp.csr_matrix((data, A.indices, A.indptr), shape=A.shape)
 
 

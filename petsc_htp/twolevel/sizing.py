@@ -74,7 +74,7 @@ LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
 FACTOR = {2: EXACT_FACTOR, 3: {**EXACT_FACTOR, "pc_type": "icc"}}
-COARSE_FACTOR = {"pc_type": "lu", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}
+COARSE_FACTOR = {"pc_type": "lu", "pc_factor_shift_type": "nonzero"}   # ordered by coarse_options
 COARSE_METIS_ROWS = 12000                   # coarse rows from which METIS orders the coarse columns
 COARSE_METIS_SCALAR_ROWS = 40000            # ... where leaves take one column per piece (metis_ordered)
 COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG replaces the LU (coarse_solver)
@@ -205,7 +205,8 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
     operator with a ``dense`` row (:func:`.graphshape.hub_rows`: a constraint coupled to every row), whose coarse
     operator has one too: GAMG's setup on it did not end in 5 minutes at 1M rows (158 799 coarse rows;
     ``results/denserow-20261126``), where the LU, which takes the dense row last (:mod:`.coarseorder`, nested
-    dissection), factors it in 1.5 s."""
+    dissection), factors it in 1.5 s. A dense row is one with more than sqrt(N) entries (:func:`.graphshape.hub_rows`,
+    :attr:`.structure.Structure.dense`)."""
     return "lu" if linear or dense or rows <= direct_limit(dim, ranks, kind, near) else "gamg"
 
 
@@ -257,9 +258,12 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
     (the const space), which PETSc's own nested dissection orders as well up to about that size
     (``examples/dmda_poisson.py -n N -warmup``, 3 runs each, setup + solve ms against that ordering: 512^2, 23 000
     coarse rows, METIS 769-807 against 742-825; 768^2, 52 000, 1 872-2 070 against 1 997-2 044; 1024^2, 92 000,
-    3 734-3 762 against 3 804-3 837, an LU of 6.1 against 8.3 million values)."""
+    3 734-3 762 against 3 804-3 837, an LU of 6.1 against 8.3 million values). Not on several ranks with a
+    ``dense`` row: each rank orders its own leaves, so the dense row's would sit amid the gathered operator's columns
+    (PETSc's nested dissection of the whole takes it last)."""
     lu = solver == "lu" or (solver == "auto" and coarse_solver(dim, rows, ranks, kind, near, linear, dense) == "lu")
-    return lu and not linear and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS)
+    return (lu and not linear and not (dense and ranks > 1)
+            and rows >= (COARSE_METIS_ROWS if block > 1 else COARSE_METIS_SCALAR_ROWS))
 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", ordered=False, near: int = 0) -> dict:

@@ -22,15 +22,16 @@ CROSSING = 0.25     # share of off-diagonal couplings between ranks from which t
 SAMPLES = 8         # seeds whose balls are grown
 
 
-def _seeds(rows, start, N, coll, rng) -> np.ndarray:
-    """Up to :data:`SAMPLES` global rows with a nonzero off-diagonal entry, the same on every rank."""
+def _seeds(rows, start, N, coll, hub, rng) -> np.ndarray:
+    """Up to :data:`SAMPLES` global rows with a nonzero off-diagonal entry, none of them a ``hub`` (this rank's rows'
+    flags), the same on every rank."""
     candidates = rng.choice(N, min(N, 8 * SAMPLES), replace=False)
     coupled = np.zeros(candidates.size)
     mine = np.flatnonzero((candidates >= start) & (candidates < start + rows.shape[0]))
     if mine.size:
         where, owner = row_entries(rows.indptr, candidates[mine] - start)
         hit = (rows.data[where] != 0) & (rows.indices[where] != candidates[mine][owner])
-        coupled[mine] = np.bincount(owner[hit], minlength=mine.size) > 0
+        coupled[mine] = (np.bincount(owner[hit], minlength=mine.size) > 0) & ~hub[candidates[mine] - start]
     return candidates[coll.max_array(coupled) > 0][:SAMPLES]
 
 
@@ -38,14 +39,13 @@ def global_growth(mat, rows, coll, seed=0) -> float:
     """The ball-growth exponent of the whole graph of ``mat`` (median of log2 |B(2R)| / |B(R)| over the seeds, R =
     :data:`.graphshape.RADIUS`): a breadth-first search from the seeds whose balls every rank holds, each rank
     expanding the rows it owns and one allgather of the rows reached per step (the work is the balls' size, as in
-    :func:`.graphshape.graph_shape`: 0.6-1 ms on meshes at 64k rows); rows holding more than
-    :func:`.graphshape.hub_rows` are reached but not grown through. nan where too few
-    coupled rows were found."""
+    :func:`.graphshape.graph_shape`: 1-6 ms at 64k rows); hub rows (:func:`.graphshape.hub_rows`) are reached but
+    neither grown through nor seeds. nan where too few coupled rows were found."""
     N, (start, end) = mat.getSize()[0], mat.getOwnershipRange()
-    seeds = _seeds(rows, start, N, coll, np.random.default_rng(seed))
+    hub = hub_rows(rows.indptr)
+    seeds = _seeds(rows, start, N, coll, hub, np.random.default_rng(seed))
     if seeds.size < SAMPLES:
         return float("nan")
-    hub = hub_rows(rows.indptr)
     ball = frontier = np.sort(np.arange(seeds.size, dtype=np.int64) * N + seeds)
     sizes = []
     for step in range(1, 2 * RADIUS + 1):

@@ -76,8 +76,8 @@ class Structure:
         self.fixed, self.attached = nearnull.count(mat, self.bs), nearnull.attached(mat)
         self.covered = bool(coll.min_array(np.array([nearnull.spans_constant(mat)], dtype=np.int64))[0])
         self.per_row = coll.sum(rows.nnz) / max(self.N, 1)
-        growth, self.dense = coll.max_array(np.array([_growth(self.shape)]))[0], coll.any(hub_rows(rows.indptr).any())
-        self.linear = sizing.chain(growth, self.per_row)
+        growth, hubs = coll.max_array(np.array([_growth(self.shape)]))[0], hub_rows(rows.indptr, self.N ** 0.5).any()
+        self.linear, self.dense = sizing.chain(growth, self.per_row), coll.any(hubs)       # dense: a dense row
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
         self.cfg = cfg = self.resolved(cfg, coords is None)
