@@ -310,6 +310,17 @@ def _random_graph(n, per_row, seed=0) -> sp.csr_matrix:
     return A
 
 
+def _on_two_ranks(A, path):
+    """``A`` written to the PETSc binary file ``path`` and solved by examples/matrix_file.py on 2 ranks with HTPPC as
+    it comes (-ksp_view): the finished process."""
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
+                                comm=PETSc.COMM_SELF)
+    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
+    mat.view(viewer)
+    viewer.destroy()
+    return _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+
+
 def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_path):
     """A random graph of degree about 6 (its balls grow exponentially, no mesh's do) above the small-matrix sizes:
     one rank takes ICC(0) of the whole matrix and -ksp_view says why; -htp_direct_max 0 keeps the two-level method.
@@ -332,14 +343,7 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
     assert graph_shape(A[:6000, :6000].tocsr(), want_weak=False, samples=8).growth < EXPANDER_GROWTH
     script = EXAMPLE.parent / "matrix_file.py"
     for per_row in (6, 3):
-        A = _random_graph(12000, per_row)
-        mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
-                                                  A.data), comm=PETSc.COMM_SELF)
-        path = tmp_path / f"graph{per_row}.petsc"
-        viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
-        mat.view(viewer)
-        viewer.destroy()
-        proc = _mpirun(2, script, "-f", str(path), *HTPPC_FLAGS)
+        proc = _on_two_ranks(_random_graph(12000, per_row), tmp_path / f"graph{per_row}.petsc")
         assert proc.returncode == 0, proc.stdout + proc.stderr
         relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
         assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8, proc.stdout
@@ -403,13 +407,7 @@ def test_diagonally_dominant_rows_get_icc_of_the_whole_matrix_and_lose_it_with_t
         mat.assemble()
         reason, its, relres, _, _ = solve(values, b, mat=mat, ksp=ksp)
         assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
-    D = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
-                              comm=PETSc.COMM_SELF)
-    path = tmp_path / "dominant.petsc"
-    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
-    D.view(viewer)
-    viewer.destroy()
-    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+    proc = _on_two_ranks(A, tmp_path / "dominant.petsc")
     assert proc.returncode == 0 and "diagonally dominant" in proc.stdout, proc.stdout + proc.stderr
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
 
@@ -441,13 +439,7 @@ def test_a_dense_row_is_ordered_last_and_keeps_the_coarse_lu(tmp_path):
     order = coarseorder.leaf_order(st.lay, A)
     hub = st.lay.leaf[st.lay.iperm[A.shape[0] - 1]]                 # the dense row's leaf
     assert order[-1] == hub and sorted(order) == list(range(st.lay.leaves.n_leaves))
-    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
-                                comm=PETSc.COMM_SELF)
-    path = tmp_path / "arrow.petsc"
-    viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
-    mat.view(viewer)
-    viewer.destroy()
-    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+    proc = _on_two_ranks(A, tmp_path / "arrow.petsc")
     assert proc.returncode == 0 and "leaves: aggregation" in proc.stdout, proc.stdout + proc.stderr
     assert int(proc.stdout.split("iterations:")[1].split()[0]) <= its_K + 5, proc.stdout
 
