@@ -131,3 +131,13 @@ def test_pattern_splits_its_entries_like_petsc_coo_on_two_ranks():
                          cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stdout + out.stderr
     assert "pattern ok on 2 ranks" in out.stdout
+
+
+def test_dominance_lost_on_one_rank_makes_a_new_analysis_on_all():
+    """A diagonally dominant matrix on two ranks takes ICC(0) of each rank's block; new values that lose the dominance
+    on one rank only make a new analysis on both (the two-level method), whose solve converges
+    (tests/dominance_case.py)."""
+    out = subprocess.run([MPIEXEC, "-n", "2", sys.executable, str(ROOT / "tests" / "dominance_case.py")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "dominance ok on 2 ranks" in out.stdout
