@@ -444,6 +444,23 @@ def test_a_dense_row_is_ordered_last_and_keeps_the_coarse_lu(tmp_path):
     assert int(proc.stdout.split("iterations:")[1].split()[0]) <= its_K + 5, proc.stdout
 
 
+def test_the_margin_looks_at_a_sample_first_and_at_every_row_where_the_sample_passes():
+    """dominance.margin on 22 500 rows: a matrix that is not dominant is told by a sample of rows; a dominant one by
+    every row, so one interior row that keeps half its margin outside the sample is found, on any rank's block
+    (``start``)."""
+    from petsc_htp.twolevel.dominance import MARGIN, SAMPLE, margin
+
+    K = foreign.dmda(2, 150, 1e3, 0)[0].tocsr()
+    assert K.shape[0] > 4 * SAMPLE and margin(K, 0) < MARGIN
+    D = _dominant(K, 0.01)
+    assert abs(margin(D, 0) - 0.01) < 1e-9 and abs(margin(D[5000:], 5000) - 0.01) < 1e-9
+    row = 75 * 150 + 76                                       # interior, not every (N // SAMPLE)-th
+    assert row % (K.shape[0] // SAMPLE)
+    diag = D.indptr[row] + np.flatnonzero(D.indices[D.indptr[row]:D.indptr[row + 1]] == row)[0]
+    D.data[diag] = 0.5 * (D.data[diag] + K[row, row])          # half its margin: 0.005
+    assert abs(margin(D, 0) - 0.005) < 1e-9 and abs(margin(D[5000:], 5000) - 0.005) < 1e-9
+
+
 def test_wide_stencils_and_nodes_stay_meshes():
     """The graph of a 27-point 3-D stencil, and of the same with 3 unknowns per node (elasticity's pattern), grows as a
     mesh's, well below sizing.EXPANDER_GROWTH, so such matrices above the small sizes keep the two-level method."""

@@ -16,22 +16,40 @@ from __future__ import annotations
 
 import numpy as np
 
-from .csr import row_sums
+from .csr import row_entries, row_sums
 
 MARGIN = 0.0025     # dominance margin c from which ICC(0) of the whole matrix beats the two-level method
+SAMPLE = 4096       # rows whose margin is looked at first
 
 
 def margin(rows, start) -> float:
     """The smallest margin c_i = a_ii / sum_j |a_ij| - 1 (j != i) over this rank's ``rows`` (CSR, global columns,
     local rows from ``start``) that hold a nonzero off-diagonal entry (inf where none does; 0 or less where a
-    diagonal is not above its row's off-diagonal sum)."""
-    diag = rows.diagonal(k=start)
-    off = row_sums(rows.indptr, np.abs(rows.data)) - np.abs(diag)
+    diagonal is not above its row's off-diagonal sum), or, where every :data:`SAMPLE`-th row's already falls below
+    :data:`MARGIN`, theirs: enough to tell, for a pass over a few thousand rows (28 against 0.2 ms at 1M rows)."""
+    n = rows.shape[0]
+    if n > 4 * SAMPLE:
+        c = _smallest(rows, start, np.arange(0, n, n // SAMPLE))
+        if c < MARGIN:
+            return c
+    return _smallest(rows, start, None)
+
+
+def _smallest(rows, start, picked) -> float:
+    """:func:`margin` over the rows ``picked`` (None: all)."""
+    if picked is None:
+        diag = rows.diagonal(k=start)
+        total = row_sums(rows.indptr, np.abs(rows.data))
+    else:
+        where, owner = row_entries(rows.indptr, picked)
+        on = rows.indices[where] == picked[owner] + start
+        diag = np.bincount(owner[on], rows.data[where[on]], minlength=picked.size)
+        total = np.bincount(owner, np.abs(rows.data[where]), minlength=picked.size)
+    off = total - np.abs(diag)
     coupled = off > 0
     if not coupled.any():
         return float("inf")
-    ratio = diag[coupled] / off[coupled]
-    return float(ratio.min() - 1.0)
+    return float((diag[coupled] / off[coupled]).min() - 1.0)
 
 
 def describe(c) -> str:
