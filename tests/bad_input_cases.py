@@ -18,6 +18,7 @@ from petsc4py import PETSc  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.petscmat import region_nullspace  # noqa: E402
+from petsc_htp.scenes.foreign import dmda  # noqa: E402
 from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 COMM = PETSc.COMM_WORLD
@@ -282,6 +283,13 @@ def case_chain():
     n = 100_000
     A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (n, n)).tocsr()
     return outcome(dist(A), np.random.default_rng(11).standard_normal(n))[0]
+
+
+def case_tiny_entries():
+    """1e-20 A, A a DMDA program's 2-D matrix of 16 384 rows with coefficient jumps, two-level: PETSc's LU calls
+    pivots below 100 eps zero for entries below one; on two ranks the redundant coarse LU's did (DIVERGED_ITS)."""
+    A, b = dmda(2, 128, 1e3, 0)
+    return outcome(dist(1e-20 * A), b, {"htp_direct_max": 0})[0]
 
 
 def case_missing_checkpoint():

@@ -957,3 +957,17 @@ def test_pieces_follow_entries_either_way_and_overlap_keeps_int64_keys():
     grown = OverlappingLeaves(lay, A, 1, factor)
     assert grown.member.size == n + 2 * (n // leaf - 1)
     grown.destroy()
+
+
+@pytest.mark.parametrize("solver", ["lu", "gamg"])
+def test_tiny_entries_take_the_iterations_of_unit_ones(frames, cube, solver):
+    """A matrix in small units (1e-20 A: a pressure or Darcy matrix in SI units) takes A's iterations: the coarse
+    LU's pivot test (PETSc's is absolute below unit entries) and shift scale with the operator, GAMG's coarsest LU's
+    too (on two ranks PCREDUNDANT's: tests/bad_input_cases.py ``tiny_entries``)."""
+    for frame in (frames[0], cube):
+        its = []
+        for scale in (1.0, 1e-20):
+            reason, n, relres, _ = solve(petsc_mat(scale * frame.A), frame.b, htp_coarse_solver=solver)
+            assert reason > 0 and relres <= 1.01e-8, (scale, reason, relres)
+            its.append(n)
+        assert its[1] <= its[0] + 1, (solver, frame.A.shape, its)
