@@ -45,6 +45,7 @@ EXPECTED = {
     "rescaled_values": CONVERGED,
     "chain": CONVERGED,
     "tiny_entries": CONVERGED,
+    "penalty_rows": CONVERGED,
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
@@ -55,7 +56,7 @@ EXPECTED = {
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2"), "rescaled_values": ("1", "3")}
 # the most iterations a converged case may take (none: no bound)
-MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40}
+MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40, "penalty_rows": 40}
 
 pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"

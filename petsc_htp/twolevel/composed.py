@@ -127,7 +127,7 @@ class TwoLevelPC:
                     with phase("HTPLeafFactor", T, "leaf"):
                         self.leafsolver.numeric(data)
         with phase("HTPProducts", T, "products"):
-            self.ops.products(self.space.finish(), self.leafsolver.exact, self.forms.needs_F())
+            self.ops.products(self.space.finish(rows), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
             self.coarse.setup(self.ops)
             self.forms.settle()
@@ -216,9 +216,7 @@ class TwoLevelPC:
                    if st.extra else "")
                 + f"; global size {st.m}, {sp.null_components} null component(s) left out"
                 + (f"; space kept from {sp.age} numeric setup{'s' if sp.age > 1 else ''} ago" if sp.age else "")
-                + (f"; pieces take |diag|^-1/2 in place of their constants (a row-scaled operator: Rayleigh quotient "
-                   f"{self.quotients[1]:.2g} against the constant's {self.quotients[0]:.2g})"
-                   if sp.weights is not None else ""),
+                + sp.notes(self.quotients),
                 self.coarse.describe(),
                 f"form: {form} (" + ("y = v - W E^-1 C^T v, v = B x; started so that W^T r0 = 0"
                                      if form == "deflated" else "symmetric balanced form") + ")",

@@ -8,8 +8,9 @@ D^-1 and restores them. Which vector is the smoother one the operator tells: z r
 Rayleigh quotient z^T A z / z^T |diag| z is below :data:`RATIO` times the constant's (a coefficient jump makes z
 rough across it, and the constant stays; a singular Neumann matrix keeps its constant, whose quotient is zero).
 Couplings to other ranks' rows are left out of both quotients alike, and so are decoupled rows (no nonzero
-off-diagonal entry: a DMDA's Dirichlet rows), which the leaf solves take exactly and which would weigh one for
-z whatever the scaling. PETSc-free.
+off-diagonal entry: a DMDA's Dirichlet rows) and pinned ones (:func:`.dominance.pinned`: a penalty's Dirichlet rows,
+whose a_ii would make the constant's whole quotient), which the leaf solves take exactly and which would weigh one
+for z whatever the scaling. PETSc-free.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .aggregation import decoupled_rows
+from .dominance import pinned
 
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 
@@ -30,6 +32,7 @@ def quotients(rows, start, coll, block=None) -> tuple:
     diag = np.abs(rows.diagonal(k=start))
     z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
     coupled = ~decoupled_rows(rows, start)
+    coupled[pinned(rows, start)] = False
     local = rows if block is None else block
     if local.shape[1] != n:                                     # this rank's columns only, by compiled products
         col = rows.indices - start

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from . import coarsespace, nullspace
+from . import coarsespace, dominance, nullspace
 from .csr import row_sums
 from .leafsolvers import seqaij
 from .spacereuse import DiagonalWatch
@@ -37,7 +37,7 @@ class CoarseSpace:
     def __init__(self, st, make_pc, shared=None):
         lay = st.lay
         self.st, self.values = st, np.zeros(st.w_p.size)
-        self.kept, self.age, self.dropped = None, 0, np.zeros(0, dtype=np.int64)
+        self.kept, self.age, self.dropped, self.pinned = None, 0, np.zeros(0, dtype=np.int64), 0
         self.weights = None                  # the flat space's piece vectors where they are not the constants
         self.watch = DiagonalWatch(lay.d_diag, st.coll)                   # W's row scaling
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
@@ -149,13 +149,25 @@ class CoarseSpace:
         w2 = lay.pieces.size if self.weights is None else np.bincount(label, w * w, minlength=lay.pieces.n_pieces)
         self.values[self.mine] = w / np.sqrt(np.maximum(w2[label], 1e-300))
 
-    def finish(self) -> np.ndarray:
-        """W's values with the dropped pieces' columns zeroed (a copy only when some are)."""
-        if not self.dropped.size:
+    def finish(self, rows) -> np.ndarray:
+        """W's values with the dropped pieces' columns and the rows ``rows`` pins (:func:`.dominance.pinned`)
+        zeroed (a copy only when some are)."""
+        pinned = np.zeros(self.st.lay.n, dtype=bool)
+        pinned[dominance.pinned(rows, self.st.lay.start)] = True
+        self.pinned = self.st.coll.sum(int(pinned.sum()))
+        if not self.dropped.size and not self.pinned:
             return self.values
         values = self.values.copy()
         values[self._zeroed(self.dropped)] = 0.0
+        values[pinned[self.st.lay.perm[self.st.w_p]]] = 0.0
         return values
+
+    def notes(self, quotients) -> str:
+        """What ``-ksp_view`` adds on the pieces' vectors: |diag|^-1/2 in place of the constants, pinned rows."""
+        text = (f"; pieces take |diag|^-1/2 in place of their constants (a row-scaled operator: Rayleigh quotient "
+                f"{quotients[1]:.2g} against the constant's {quotients[0]:.2g})" if self.weights is not None else "")
+        return text + (f"; {self.pinned} pinned row(s) left out of W (a_ii >= {dominance.PINNED:g} x the row's "
+                       f"off-diagonal sum: a penalty's Dirichlet rows)" if self.pinned else "")
 
     def _zeroed(self, dropped) -> np.ndarray:
         """W's entries in the columns ``dropped`` (cached: the null space rarely changes)."""
