@@ -18,7 +18,7 @@ from petsc4py import PETSc  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.petscmat import region_nullspace  # noqa: E402
-from petsc_htp.scenes.foreign import dmda  # noqa: E402
+from petsc_htp.scenes.foreign import dmda, neumann  # noqa: E402
 from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 COMM = PETSc.COMM_WORLD
@@ -301,6 +301,16 @@ def case_penalty_rows():
     A = sp.kronsum(T.tocsr(), T.tocsr()).tocsr()
     A = (A + sp.diags((np.arange(side * side) % side == 0) * 4e30)).tocsr()
     return outcome(dist(A), np.random.default_rng(3).standard_normal(side * side), {"htp_direct_max": 0})[0]
+
+
+def case_singular_scaled():
+    """D A D, A the foreign study's Neumann matrix of 4 096 rows (coefficient jumps of 1e3) and D = |diag A|^-1/2,
+    nothing attached: singular with D^-1 1, not the constant, as its null vector, so no row sum vanishes; one factor
+    of the whole matrix on one rank, whose Cholesky factor had a negative pivot: HTPPC called the matrix indefinite.
+    Every component is grounded now where the factor has negative pivots."""
+    A, b = neumann(64, 1e3, 0)[:2]
+    D = sp.diags(1.0 / np.sqrt(A.diagonal()))
+    return outcome(dist(D @ A @ D), D @ b)[0]
 
 
 def case_missing_checkpoint():

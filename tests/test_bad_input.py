@@ -46,6 +46,7 @@ EXPECTED = {
     "chain": CONVERGED,
     "tiny_entries": CONVERGED,
     "penalty_rows": CONVERGED,
+    "singular_scaled": CONVERGED,
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",

@@ -80,11 +80,12 @@ class DirectPC:
         """The factor."""
         return {"factor": self.pc}
 
-    def numeric(self, rows, density=None, keep_space=False):
-        """Factor the new values (on one rank grounded where a component is null; on several the KSP's null space
-        and the factor's shift take a singular matrix)."""
+    def numeric(self, rows, density=None, keep_space=False, every=False):
+        """Factor the new values (on one rank grounded where a component is null, ``every`` one where the factor
+        had negative pivots: a null vector other than the constant, as D^-1 1 of a singular D A D; on several the
+        KSP's null space and the factor's shift take a singular matrix)."""
         t0 = time.perf_counter()
-        target = self._grounded(rows) if self.ranks == 1 else self.mat
+        target = self._grounded(rows, every) if self.ranks == 1 else self.mat
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
             self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
@@ -101,20 +102,26 @@ class DirectPC:
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
         if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
             negative = self.pc.getFactorMatrix().getInertia()[0]
+            if negative and self.ranks == 1 and not every:
+                return self.numeric(rows, density, keep_space, every=True)
             if negative:
                 raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
                                  f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
 
-    def _grounded(self, rows):
-        """The operator, or its copy with one diagonal entry of each null component raised (one rank)."""
+    def _grounded(self, rows, every=False):
+        """The operator, or its copy with one diagonal entry of each null component (``every`` component) raised (one
+        rank)."""
         nsp, diag = self.mat.getNullSpace(), rows.diagonal()
         rowsum = None if nsp.handle else np.asarray(rows.sum(axis=1)).ravel()
-        if rowsum is not None and not np.any(np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)):
+        if not every and rowsum is not None and not np.any(
+                np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)):
             self.null_components = 0                     # no row sum vanishes: no component can be null
             return self.mat
         if self.comp_of_row is None:
             self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
-        if nsp.handle:
+        if every:
+            null = np.ones(self.n_comp, dtype=bool)
+        elif nsp.handle:
             null = nullspace.null_from_vectors([z.getArray(readonly=True) for z in nsp.getVecs()], nsp.hasConstant(),
                                                self.comp_of_row, self.n_comp)
         else:

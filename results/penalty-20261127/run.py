@@ -12,30 +12,15 @@ import numpy as np
 import scipy.sparse as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "units-20261127"))
-from run import COMM, METHODS, PETSc, solve  # noqa: E402
-
-import petsc_htp  # noqa: E402
-from petsc_htp.bench.foreigncases import CASES  # noqa: E402
+from run import table  # noqa: E402
 
 
-def main():
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 65536
-    cases = sys.argv[2:] or ["dmda3d", "free_surface", "fem_tri", "fem_tet", "lognormal", "neumann"]
-    PETSc.Sys.Print(f"# {COMM.getSize()} rank(s), N about {n}; ms (iterations) [true relres], PETSc's reason where "
-                    f"not converged; petsc_htp {petsc_htp.__file__}", comm=COMM)
-    for case in cases:
-        A, b = CASES[case](n, 0)[:2]
-        A = sp.csr_matrix(A)
-        held = np.zeros(A.shape[0])
-        held[::max(1, A.shape[0] // 300)] = A.diagonal().max()
-        for method in METHODS:
-            solve(A, b, method)                                   # warm-up
-            cells = []
-            for tgv in (0.0, 1e8, 1e30):
-                ms, its, rel, reason = solve((A + sp.diags(tgv * held)).tocsr(), b, method)
-                cells.append(f"tgv {tgv:g}: {ms:.0f} ({its}) [{rel:.1e}]" + ("" if reason > 0 else f" reason {reason}"))
-            PETSc.Sys.Print(f"{case} {A.shape[0]} {method}: " + "; ".join(cells), comm=COMM)
+def held(A, b):
+    """A with every (N/300)-th row held by a penalty of tgv times the largest diagonal."""
+    rows = np.zeros(A.shape[0])
+    rows[::max(1, A.shape[0] // 300)] = A.diagonal().max()
+    return {f"tgv {tgv:g}": ((A + sp.diags(tgv * rows)).tocsr(), b) for tgv in (0.0, 1e8, 1e30)}
 
 
 if __name__ == "__main__":
-    main()
+    table(held, ["dmda3d", "free_surface", "fem_tri", "fem_tet", "lognormal", "neumann"])

@@ -65,26 +65,32 @@ def solve(A, b, method):
     return out
 
 
-def main():
+def table(variants, default_cases):
+    """One line per case of the command line's (N, then case names; default 65536 and ``default_cases``) and method:
+    ms (iterations) [true relres] of each of ``variants(A, b)``'s {name: (matrix, rhs)} after a warm-up solve."""
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 65536
-    cases = sys.argv[2:] or ["dmda2d", "dmda3d", "free_surface", "fem_tet", "lognormal", "neumann"]
-    PETSc.Sys.Print(f"# {COMM.getSize()} rank(s), N about {n}; ms (iterations) [true relres], PETSc's reason where not converged; "
-                    f"petsc_htp {petsc_htp.__file__}", comm=COMM)
+    cases = sys.argv[2:] or default_cases
+    PETSc.Sys.Print(f"# {COMM.getSize()} rank(s), N about {n}; ms (iterations) [true relres], PETSc's reason where not "
+                    f"converged; petsc_htp {petsc_htp.__file__}", comm=COMM)
     for case in cases:
         A, b = CASES[case](n, 0)[:2]
         A = sp.csr_matrix(A)
-        d = np.abs(A.diagonal())
-        D = sp.diags(1 / np.sqrt(np.where(d > 0, d, 1)))
-        variants = {"A": (A, b), "1e-12 A": (1e-12 * A, b), "1e-20 A": (1e-20 * A, b),
-                    "unit diagonal": ((D @ A @ D).tocsr(), D @ b)}
         for method in METHODS:
             solve(A, b, method)                                   # warm-up
             cells = []
-            for name, (M, rhs) in variants.items():
+            for name, (M, rhs) in variants(A, b).items():
                 ms, its, rel, reason = solve(M, rhs, method)
                 cells.append(f"{name}: {ms:.0f} ({its}) [{rel:.1e}]" + ("" if reason > 0 else f" reason {reason}"))
             PETSc.Sys.Print(f"{case} {A.shape[0]} {method}: " + "; ".join(cells), comm=COMM)
 
 
+def units(A, b):
+    """A in other units and at a unit diagonal."""
+    d = np.abs(A.diagonal())
+    D = sp.diags(1 / np.sqrt(np.where(d > 0, d, 1)))
+    return {"A": (A, b), "1e-12 A": (1e-12 * A, b), "1e-20 A": (1e-20 * A, b),
+            "unit diagonal": ((D @ A @ D).tocsr(), D @ b)}
+
+
 if __name__ == "__main__":
-    main()
+    table(units, ["dmda2d", "dmda3d", "free_surface", "fem_tet", "lognormal", "neumann"])
