@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from . import inner, nearnull, nullspace, scaling, sizing
+from . import dominance, inner, nearnull, nullspace, scaling, sizing
 from ..checks import rayleigh_reason
 from ..events import phase
 from ..petscmat import diagonal_block
@@ -102,6 +102,7 @@ class TwoLevelPC:
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
         lay, T, data = self.st.lay, {}, rows.data
+        pinned = dominance.pinned(rows, lay.start)                  # rows W leaves out (a penalty's)
         with phase("HTPLeafFactor", T, "leaf"):
             o_values = self.ops.couplings(data)
             ground = self.space.null(self.mat, rows)
@@ -117,7 +118,7 @@ class TwoLevelPC:
                     self.its, weights = [], None
                     if self.space.flat and not self.space.null_components:    # a null constant stays
                         with diagonal_block(self.mat, rows) as block:
-                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block)
+                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block, pinned)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density), nearnull.vectors(self.mat, self.st.bs), weights)
                 else:
@@ -127,7 +128,7 @@ class TwoLevelPC:
                     with phase("HTPLeafFactor", T, "leaf"):
                         self.leafsolver.numeric(data)
         with phase("HTPProducts", T, "products"):
-            self.ops.products(self.space.finish(rows), self.leafsolver.exact, self.forms.needs_F())
+            self.ops.products(self.space.finish(pinned), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
             self.coarse.setup(self.ops)
             self.forms.settle()

@@ -18,21 +18,22 @@ import numpy as np
 import scipy.sparse as sp
 
 from .aggregation import decoupled_rows
-from .dominance import pinned
 
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 
 
-def quotients(rows, start, coll, block=None) -> tuple:
+def quotients(rows, start, coll, block=None, pinned=None) -> tuple:
     """(the constant's quotient, z's quotient, z) with z = |diag|^-1/2 on this rank's ``rows`` (CSR, global columns,
-    local rows ``start`` ...; couplings to other ranks' rows and decoupled rows left out); the quotients are sums
-    over all ranks (collective). ``block``: the rows' diagonal block (this rank's columns), where it is at hand
-    (:func:`petsc_htp.petscmat.diagonal_block`); else it is cut from ``rows``."""
+    local rows ``start`` ...; couplings to other ranks' rows, decoupled rows and the ``pinned`` local rows left out
+    (:func:`.dominance.pinned`)); the quotients are sums over all ranks (collective). ``block``: the rows' diagonal
+    block (this rank's columns), where it is at hand (:func:`petsc_htp.petscmat.diagonal_block`); else it is cut
+    from ``rows``."""
     n = rows.shape[0]
     diag = np.abs(rows.diagonal(k=start))
     z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
     coupled = ~decoupled_rows(rows, start)
-    coupled[pinned(rows, start)] = False
+    if pinned is not None:
+        coupled[pinned] = False
     local = rows if block is None else block
     if local.shape[1] != n:                                     # this rank's columns only, by compiled products
         col = rows.indices - start
@@ -46,8 +47,8 @@ def quotients(rows, start, coll, block=None) -> tuple:
     return one, rough, z
 
 
-def weights(rows, start, coll, block=None):
+def weights(rows, start, coll, block=None, pinned=None):
     """(z, (the constant's quotient, z's)) where z = |diag(A)|^-1/2 is the smoother vector on this rank's rows (see
     the module docstring), else (None, the quotients); ``block`` as :func:`quotients` takes it. Collective."""
-    one, rough, z = quotients(rows, start, coll, block)
+    one, rough, z = quotients(rows, start, coll, block, pinned)
     return (z if rough < RATIO * one else None), (one, rough)

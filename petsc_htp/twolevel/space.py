@@ -150,10 +150,10 @@ class CoarseSpace:
         self.values[self.mine] = w / np.sqrt(np.maximum(w2[label], 1e-300))
 
     def finish(self, rows) -> np.ndarray:
-        """W's values with the dropped pieces' columns and the rows ``rows`` pins (:func:`.dominance.pinned`)
+        """W's values with the dropped pieces' columns and the pinned local ``rows`` (:func:`.dominance.pinned`)
         zeroed (a copy only when some are)."""
         pinned = np.zeros(self.st.lay.n, dtype=bool)
-        pinned[dominance.pinned(rows, self.st.lay.start)] = True
+        pinned[rows] = True
         self.pinned = self.st.coll.sum(int(pinned.sum()))
         if not self.dropped.size and not self.pinned:
             return self.values
