@@ -101,8 +101,8 @@ class TwoLevel:
         every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
         (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi') where the rows are
-        diagonally dominant (:meth:`_dominant`) or, bare, the graph is no mesh (:meth:`_no_mesh`), :attr:`why` saying
-        so."""
+        diagonally dominant (:meth:`_dominant`) or, bare, the graph is no mesh (:meth:`_no_mesh`) or the rows strongly
+        anisotropic (:meth:`_anisotropic`), :attr:`why` saying so."""
         from .twolevel import sizing
 
         self.why, self.dominant = None, False
@@ -119,7 +119,9 @@ class TwoLevel:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             kind = self._dominant(mat, A, coll)
-            return self._no_mesh(mat, A, coll) if kind is None and coords is None else kind
+            if kind is None and coords is None:
+                kind = self._no_mesh(mat, A, coll) or self._anisotropic(mat, A, coll)
+            return kind
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -158,6 +160,28 @@ class TwoLevel:
         self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "
                     "space does not pay")
         return "icc" if coll.size == 1 else "bjacobi"
+
+    def _anisotropic(self, mat, A, coll):
+        """'icc' on one rank where the positive couplings of the rows weigh at least
+        :data:`.twolevel.incomplete.WEIGHT` of the diagonal, the graph is 2-D and ICC(0)'s short trial confirms that it
+        follows the strong couplings (:mod:`.twolevel.incomplete`), else None (P1 tets, whose obtuse elements' positive
+        couplings weigh as much, paid 77 ms for a failed trial at 64 000 rows). Several ranks keep the two-level method: each rank's block
+        cuts the strong couplings (2 ranks, 65 536 rows: ICC(0) of each block took 159-262 CG iterations)."""
+        from .petscmat import diagonal_block
+        from .twolevel import incomplete
+
+        if coll.size > 1:
+            return None
+        weight = incomplete.positive_weight(A)
+        if not weight >= incomplete.WEIGHT or self._block_shape(mat, A).dim != 2:
+            return None
+        with diagonal_block(mat, A) as block:
+            drop = incomplete.trial_drop(mat, incomplete.window(block))
+        if not drop <= incomplete.TRIAL_DROP:
+            return None
+        self.why = (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal; ICC(0) took a trial "
+                    f"residual to {drop:.1e} in {incomplete.TRIAL_ITS} CG iterations): a coarse space does not pay")
+        return "icc"
 
     @staticmethod
     def _block_shape(mat, A):

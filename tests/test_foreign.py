@@ -210,13 +210,12 @@ def test_wide_rows_lower_the_strength_threshold():
 
 @pytest.mark.parametrize("case, second, coarse", [
     ("dmda2d", "pairs", "const"), ("dmda3d", "pairs", "const"), ("free_surface", "pairs", "const"),
-    ("aniso_e0.01_a30", "standard", "eig"), ("fem_tri", "pairs", "const"), ("fem_tet", "pairs", "const"),
+    ("fem_tri", "pairs", "const"), ("fem_tet", "pairs", "const"),
     ("fem_hex", "pairs", "const"), ("lognormal", "pairs", "const"), ("neumann", "pairs", "const")])
 def test_default_converges_within_40_iterations_on_foreign_matrices(case, second, coarse):
     """The defaults by what the graph shows: in 3-D, and in 2-D where rows are as sparse as a 5-point stencil's or
-    no coupling is positive (P1 triangles), the first pass's aggregates paired, with the const space; in 2-D where
-    rows are richer and a quarter of their couplings positive (rotated anisotropy) standard passes with the eig
-    space."""
+    no coupling is positive (P1 triangles), the first pass's aggregates paired, with the const space (rotated
+    anisotropy: test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank)."""
     A, b = CASES[case](12000, 0)                          # above the small-matrix factor's sizes
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and its <= 40 and relres <= 1e-8, (case, reason, its, relres)
@@ -351,6 +350,50 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
     assert proc.returncode == 0 and "leaves: aggregation" in proc.stdout, proc.stdout + proc.stderr
     share = float(proc.stdout.split("ranks: 2; ")[1].split("%")[0]) / 100   # the whole graph's growth was measured
     assert share >= spread.CROSSING and "no mesh" not in proc.stdout, proc.stdout
+
+
+def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank(tmp_path):
+    """Rotated anisotropy (eps 0.01 and 0.001, 9-point, above the small-matrix sizes): the positive couplings weigh a
+    fifth of the diagonal and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole matrix, -ksp_view says
+    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0). Numbered at random, the same
+    matrix fails the trial (ICC(0) follows no line there) and stays two-level; so does a P1 Laplacian, whose
+    couplings are not positive (no trial), and the same matrix on two ranks, whose blocks cut the strong lines."""
+    from petsc_htp.twolevel import incomplete
+
+    for case in ("aniso_e0.01_a30", "aniso_e0.001_a45"):
+        A, b = CASES[case](12000, 0)
+        assert incomplete.positive_weight(sp.csr_matrix(A)) >= incomplete.WEIGHT
+        reason, its, relres, ksp, _ = solve(A, b)
+        text = lines(ksp)
+        assert reason > 0 and relres <= 1e-8 and its <= 30, (case, its, relres)
+        assert text.startswith("whole matrix: ICC(0)") and "strongly anisotropic rows" in text, text
+        reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
+        assert reason > 0 and relres <= 1e-8 and its2 > its and "leaves: aggregation" in lines(ksp), (its, its2)
+    p = np.random.default_rng(0).permutation(A.shape[0])
+    shuffled = sp.csr_matrix(A)[p][:, p].tocsr()
+    assert incomplete.trial_drop(frame_mat(bare_frame(shuffled, b[p], ""), PETSc.COMM_SELF),
+                                 incomplete.window(shuffled)) > incomplete.TRIAL_DROP
+    reason, _, relres, ksp, _ = solve(shuffled, b[p])
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+    T, t = CASES["fem_tri"](12000, 0)
+    assert incomplete.positive_weight(sp.csr_matrix(T)) < incomplete.WEIGHT
+    proc = _on_two_ranks(sp.csr_matrix(A), tmp_path / "rotated.petsc")
+    assert proc.returncode == 0 and "leaves: aggregation" in proc.stdout, proc.stdout + proc.stderr
+
+
+def test_the_icc_trial_window_is_a_ball_of_the_graph():
+    """The trial's rows on a large matrix: a graph ball of TRIAL_ROWS rows about the middle row, sorted (a square
+    patch of a grid, not the strip of its leading rows); the whole matrix where it is smaller."""
+    from petsc_htp.twolevel import incomplete
+
+    side = 301                                      # the middle row is the grid's centre
+    path = sp.diags([-np.ones(side - 1), 2 * np.ones(side), -np.ones(side - 1)], [-1, 0, 1])
+    grid = sp.kronsum(path, path).tocsr()
+    rows = incomplete.window(grid, 4000)
+    assert rows.size == 4000 and np.all(np.diff(rows) > 0)
+    x, y = rows % side, rows // side
+    assert 80 < np.ptp(x) < 100 and 80 < np.ptp(y) < 100, (np.ptp(x), np.ptp(y))     # a diamond of radius ~45
+    assert np.array_equal(incomplete.window(grid[:1000, :1000].tocsr(), 4000), np.arange(1000))
 
 
 def test_the_whole_graphs_growth_is_the_graph_shapes():
