@@ -120,7 +120,7 @@ class TwoLevel:
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
-                kind = self._no_mesh(mat, A, coll) or self._anisotropic(mat, A, coll)
+                kind = self._no_mesh(mat, A, coll) or self._anisotropic(mat, A, coll, per_row)
             return kind
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
@@ -161,16 +161,17 @@ class TwoLevel:
                     "space does not pay")
         return "icc" if coll.size == 1 else "bjacobi"
 
-    def _anisotropic(self, mat, A, coll):
+    def _anisotropic(self, mat, A, coll, per_row):
         """'icc' on one rank where the positive couplings of the rows weigh at least
-        :data:`.twolevel.incomplete.WEIGHT` of the diagonal, the graph is 2-D and ICC(0)'s short trial confirms that it
-        follows the strong couplings (:mod:`.twolevel.incomplete`), else None (P1 tets, whose obtuse elements' positive
-        couplings weigh as much, paid 77 ms for a failed trial at 64 000 rows). Several ranks keep the two-level method: each rank's block
+        :data:`.twolevel.incomplete.WEIGHT` of the diagonal, rows hold at most :data:`.twolevel.incomplete.STENCIL`
+        stored entries (``per_row``, the mean), the graph is 2-D and ICC(0)'s short trial confirms that it follows the
+        strong couplings (:mod:`.twolevel.incomplete`), else None (P1 tets, whose obtuse elements' positive couplings
+        weigh as much, paid 77 ms for a failed trial at 64 000 rows). Several ranks keep the two-level method: each rank's block
         cuts the strong couplings (2 ranks, 65 536 rows: ICC(0) of each block took 159-262 CG iterations)."""
         from .petscmat import diagonal_block
         from .twolevel import incomplete
 
-        if coll.size > 1:
+        if coll.size > 1 or per_row > incomplete.STENCIL:
             return None
         weight = incomplete.positive_weight(A)
         if not weight >= incomplete.WEIGHT or self._block_shape(mat, A).dim != 2:

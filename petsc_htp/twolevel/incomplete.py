@@ -22,6 +22,7 @@ from .aggregation import SAMPLE_ROWS
 from .csr import row_entries
 
 WEIGHT = 0.2            # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
+STENCIL = 10.0          # ... where rows hold at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows
 TRIAL_DROP = 0.1        # ... whose residual must fall below this times the first
@@ -75,11 +76,12 @@ def trial_drop(mat, rows) -> float:
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.setTolerances(rtol=0.0, atol=0.0, max_it=TRIAL_ITS)
         ksp.setConvergenceHistory(length=TRIAL_ITS + 1)
+        ksp.setConvergenceTest(_halfway)
         b.setArray(np.random.default_rng(0).random(n))
         x.set(0.0)
         ksp.solve(b, x)
         history = ksp.getConvergenceHistory()
-        if ksp.getConvergedReason() < 0 and ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT:
+        if ksp.getConvergedReason() < 0:
             return np.inf
         if history.size < 2 or not np.all(np.isfinite(history)) or not history[0] > 0:
             return np.inf
@@ -87,3 +89,12 @@ def trial_drop(mat, rows) -> float:
     finally:
         for obj in (ksp, b, x, index) + ((part,) if part is not block else ()):
             obj.destroy()
+
+
+def _halfway(ksp, its, rnorm):
+    """The trial's end: after :data:`TRIAL_ITS` iterations, or halfway where the residual has not fallen below the
+    first (every matrix that failed the trial: half its cost)."""
+    first = ksp.getConvergenceHistory()[0]
+    if its >= TRIAL_ITS or (its == TRIAL_ITS // 2 and rnorm >= first):
+        return PETSc.KSP.ConvergedReason.CONVERGED_ITS
+    return PETSc.KSP.ConvergedReason.ITERATING
