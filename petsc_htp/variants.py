@@ -162,27 +162,12 @@ class TwoLevel:
         return "icc" if coll.size == 1 else "bjacobi"
 
     def _anisotropic(self, mat, A, coll, per_row):
-        """'icc' on one rank where the positive couplings of the rows weigh at least
-        :data:`.twolevel.incomplete.WEIGHT` of the diagonal, rows hold at most :data:`.twolevel.incomplete.STENCIL`
-        stored entries (``per_row``, the mean), the graph is 2-D and ICC(0)'s short trial confirms that it follows the
-        strong couplings (:mod:`.twolevel.incomplete`), else None (P1 tets, whose obtuse elements' positive couplings
-        weigh as much, paid 77 ms for a failed trial at 64 000 rows). Several ranks keep the two-level method: each rank's block
-        cuts the strong couplings (2 ranks, 65 536 rows: ICC(0) of each block took 159-262 CG iterations)."""
-        from .petscmat import diagonal_block
-        from .twolevel import incomplete
+        """'icc' (on several ranks 'bjacobi') where the rows are strongly anisotropic
+        (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
+        from .twolevel.incomplete import why_icc
 
-        if coll.size > 1 or per_row > incomplete.STENCIL:
-            return None
-        weight = incomplete.positive_weight(A)
-        if not weight >= incomplete.WEIGHT or self._block_shape(mat, A).dim != 2:
-            return None
-        with diagonal_block(mat, A) as block:
-            drop = incomplete.trial_drop(mat, incomplete.window(block))
-        if not drop <= incomplete.TRIAL_DROP:
-            return None
-        self.why = (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal; ICC(0) took a trial "
-                    f"residual to {drop:.1e} in {incomplete.TRIAL_ITS} CG iterations): a coarse space does not pay")
-        return "icc"
+        self.why = why_icc(mat, A, per_row, coll)
+        return None if self.why is None else "icc" if coll.size == 1 else "bjacobi"
 
     @staticmethod
     def _block_shape(mat, A):

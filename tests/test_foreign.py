@@ -357,7 +357,7 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank(tm
     fifth of the diagonal and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole matrix, -ksp_view says
     why, and it takes fewer iterations than the two-level method (-htp_direct_max 0). Numbered at random, the same
     matrix fails the trial (ICC(0) follows no line there) and stays two-level; so does a P1 Laplacian, whose
-    couplings are not positive (no trial), and the same matrix on two ranks, whose blocks cut the strong lines."""
+    couplings are not positive (no trial). On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
     from petsc_htp.twolevel import incomplete
 
     for case in ("aniso_e0.01_a30", "aniso_e0.001_a45"):
@@ -378,7 +378,8 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank(tm
     T, t = CASES["fem_tri"](12000, 0)
     assert incomplete.positive_weight(sp.csr_matrix(T)) < incomplete.WEIGHT
     proc = _on_two_ranks(sp.csr_matrix(A), tmp_path / "rotated.petsc")
-    assert proc.returncode == 0 and "leaves: aggregation" in proc.stdout, proc.stdout + proc.stderr
+    assert proc.returncode == 0 and "strongly anisotropic rows" in proc.stdout, proc.stdout + proc.stderr
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
 
 
 def test_the_icc_trial_window_is_a_ball_of_the_graph():

@@ -20,12 +20,38 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .aggregation import SAMPLE_ROWS
 from .csr import row_entries
+from .graphshape import graph_shape
+from ..petscmat import diagonal_block
 
 WEIGHT = 0.2            # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
 STENCIL = 10.0          # ... where rows hold at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows
 TRIAL_DROP = 0.1        # ... whose residual must fall below this times the first
+
+
+def why_icc(mat, A, per_row, coll):
+    """Why ICC(0) of the whole matrix (of each rank's diagonal block on several ranks) serves ``mat`` (this rank's
+    rows ``A``, scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), or None: rows hold at most
+    :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT` of the diagonal on every rank
+    (:func:`positive_weight`), every rank's graph is 2-D (P1 tets, whose obtuse elements' positive couplings weigh as
+    much, paid 77 ms for a failed trial at 64 000 rows) and every rank's trial brings its residual below
+    :data:`TRIAL_DROP` (:func:`trial_drop` on its block). Collective."""
+    if per_row > STENCIL:
+        return None
+    with diagonal_block(mat, A) as block:
+        weight = coll.min_array(np.array([positive_weight(block)]))[0]
+        if not weight >= WEIGHT:
+            return None
+        dim = coll.max_array(np.array([graph_shape(block, want_weak=False, samples=8).dim]))[0]
+        if dim != 2:
+            return None
+        rows = window(block)
+    drop = coll.max_array(np.array([trial_drop(mat.getDiagonalBlock(), rows)]))[0]
+    if not drop <= TRIAL_DROP:
+        return None
+    return (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal; ICC(0) took a trial residual "
+            f"to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space does not pay")
 
 
 def positive_weight(A, rows=SAMPLE_ROWS) -> float:
@@ -43,26 +69,25 @@ def positive_weight(A, rows=SAMPLE_ROWS) -> float:
     return float(np.median(np.divide(total, diag, out=np.zeros_like(total), where=diag > 0)))
 
 
-def window(block, size=TRIAL_ROWS) -> np.ndarray:
-    """The rows of a graph ball of at most ``size`` rows about the middle row of a rank's diagonal ``block`` (scipy
-    CSR), sorted: a patch of the domain in the matrix's own numbering. The leading rows would not do: in a 1024^2
+def window(A, size=TRIAL_ROWS) -> np.ndarray:
+    """The rows of a graph ball of at most ``size`` rows about the middle row of a square CSR ``A``, sorted: a patch
+    of the domain in the matrix's own numbering. The leading rows would not do: in a 1024^2
     grid they are a strip 64 rows high, on which ICC(0) converged fast whatever the anisotropy."""
-    n = block.shape[0]
+    n = A.shape[0]
     if n <= size:
         return np.arange(n)
-    order = breadth_first_order(block, n // 2, directed=True, return_predecessors=False)
+    order = breadth_first_order(A, n // 2, directed=True, return_predecessors=False)
     return np.sort(order[:size])
 
 
 def trial_drop(mat, rows) -> float:
     """The residual after :data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side in
-    [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of this
-    rank's diagonal block: a cost that does not grow with N (at 1M rows the whole matrix's trial took 0.3-0.7 s,
-    and its residual grew on every kind of row); inf where PETSc's factor failed. Local: no messages."""
-    block = mat.getDiagonalBlock()
+    [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of a
+    sequential ``mat`` (a rank's diagonal block): a cost that does not grow with N (at 1M rows the whole matrix's
+    trial took 0.3-0.7 s, and its residual grew on every kind of row); inf where PETSc's factor failed."""
     n = rows.size
     index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-    part = block.createSubMatrix(index, index) if n < block.getSize()[0] else block
+    part = mat.createSubMatrix(index, index) if n < mat.getSize()[0] else mat
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
     b, x = part.createVecLeft(), part.createVecRight()
     try:
@@ -87,7 +112,7 @@ def trial_drop(mat, rows) -> float:
             return np.inf
         return float(history[-1] / history[0])
     finally:
-        for obj in (ksp, b, x, index) + ((part,) if part is not block else ()):
+        for obj in (ksp, b, x, index) + ((part,) if part is not mat else ()):
             obj.destroy()
 
 

@@ -1,12 +1,13 @@
-"""Rotated anisotropy on one rank: HTPPC as it comes (ICC(0) of the whole matrix where the rows' positive couplings
-weigh a fifth of the diagonal and ICC(0)'s trial confirms; petsc_htp.twolevel.incomplete), HTPPC's two-level method
-(-htp_direct_max 0: what HTPPC did on these matrices before), ICC(0) alone and GAMG (PETSc's defaults), one solve
+"""Rotated anisotropy: HTPPC as it comes (ICC(0) of the whole matrix, of each rank's block on several, where the rows'
+positive couplings weigh a fifth of the diagonal and ICC(0)'s trial confirms; petsc_htp.twolevel.incomplete),
+HTPPC's two-level method (-htp_direct_max 0: what HTPPC did on these matrices before), ICC(0) alone (PCBJACOBI's,
+one block per rank) and GAMG (PETSc's defaults), one solve
 each from a fresh Mat and KSP after a warm-up solve, CG to rtol 1e-8 in the unpreconditioned norm: setup + solve ms
 (iterations) [true relative residual]. Cases: the foreign study's two rotated anisotropies, PyAMG's FE stencils that
 pass the trial, and matrices whose positive couplings weigh as much but fail it (eps 0.1, 2-D elasticity, a
 Laplacian squared plus the Laplacian): there the trial is what HTPPC pays over its two-level method.
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python results/rotated-20261127/run.py [N] [case ...]
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [mpiexec -n 2] python results/rotated-20261127/run.py [N] [case ...]
 """
 import sys
 from pathlib import Path
@@ -20,7 +21,7 @@ import run as units  # noqa: E402
 units.METHODS.clear()
 units.METHODS.update({"htppc": {"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"},
                       "two-level": {"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_direct_max": 0},
-                      "icc": {"pc_type": "icc"}, "gamg": {"pc_type": "gamg"}})
+                      "icc": {"pc_type": "bjacobi", "sub_pc_type": "icc"}, "gamg": {"pc_type": "gamg"}})
 
 
 def stencil(kind, eps, degrees):
