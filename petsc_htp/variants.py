@@ -64,7 +64,7 @@ class TwoLevel:
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
-        self.why, self.dominant = None, False      # why the whole matrix is factored; for its rows' dominance
+        self.why, self.holds = None, None          # why the whole matrix is factored; what new values may lose
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -91,7 +91,7 @@ class TwoLevel:
         if kind is not None:
             from .twolevel.direct import DirectPC
 
-            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.dominant)
+            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.holds)
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
@@ -105,7 +105,7 @@ class TwoLevel:
         anisotropic (:meth:`_anisotropic`), :attr:`why` saying so."""
         from .twolevel import sizing
 
-        self.why, self.dominant = None, False
+        self.why, self.holds = None, None
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
@@ -139,7 +139,7 @@ class TwoLevel:
         c = coll.min_array(np.array([c if c == c else -np.inf]))[0]       # nan (none so far) would split the ranks
         if not c >= dominance.MARGIN:
             return None
-        self.why, self.dominant = dominance.describe(c), True
+        self.why, self.holds = dominance.describe(c), dominance.holds
         return "icc" if coll.size == 1 else "bjacobi"
 
     def _no_mesh(self, mat, A, coll):
@@ -164,10 +164,13 @@ class TwoLevel:
     def _anisotropic(self, mat, A, coll, per_row):
         """'icc' (on several ranks 'bjacobi') where the rows are strongly anisotropic
         (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
-        from .twolevel.incomplete import why_icc
+        from .twolevel import incomplete
 
-        self.why = why_icc(mat, A, per_row, coll)
-        return None if self.why is None else "icc" if coll.size == 1 else "bjacobi"
+        self.why = incomplete.why_icc(mat, A, per_row, coll)
+        if self.why is None:
+            return None
+        self.holds = incomplete.holds
+        return "icc" if coll.size == 1 else "bjacobi"
 
     @staticmethod
     def _block_shape(mat, A):

@@ -352,12 +352,12 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
     assert share >= spread.CROSSING and "no mesh" not in proc.stdout, proc.stdout
 
 
-def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank(tmp_path):
+def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
     """Rotated anisotropy (eps 0.01 and 0.001, 9-point, above the small-matrix sizes): the positive couplings weigh a
     fifth of the diagonal and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole matrix, -ksp_view says
-    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0). Numbered at random, the same
-    matrix fails the trial (ICC(0) follows no line there) and stays two-level; so does a P1 Laplacian, whose
-    couplings are not positive (no trial). On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
+    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0: standard passes, eig space).
+    Numbered at random, the same matrix fails the trial (ICC(0) follows no line there) and stays two-level. On two
+    ranks ICC(0) of each rank's block (PCBJACOBI)."""
     from petsc_htp.twolevel import incomplete
 
     for case in ("aniso_e0.01_a30", "aniso_e0.001_a45"):
@@ -368,23 +368,55 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank(tm
         assert reason > 0 and relres <= 1e-8 and its <= 30, (case, its, relres)
         assert text.startswith("whole matrix: ICC(0)") and "strongly anisotropic rows" in text, text
         reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
-        assert reason > 0 and relres <= 1e-8 and its2 > its and "leaves: aggregation" in lines(ksp), (its, its2)
+        text = lines(ksp)
+        assert reason > 0 and relres <= 1e-8 and its2 > its, (its, its2)
+        assert "second pass standard" in text and "coarse: eig (" in text, text
+    A, b = CASES["aniso_e0.001_a45"](12000, 0)
     p = np.random.default_rng(0).permutation(A.shape[0])
     shuffled = sp.csr_matrix(A)[p][:, p].tocsr()
     assert incomplete.trial_drop(frame_mat(bare_frame(shuffled, b[p], ""), PETSc.COMM_SELF),
                                  incomplete.window(shuffled)) > incomplete.TRIAL_DROP
     reason, _, relres, ksp, _ = solve(shuffled, b[p])
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
-    T, t = CASES["fem_tri"](12000, 0)
-    assert incomplete.positive_weight(sp.csr_matrix(T)) < incomplete.WEIGHT
     proc = _on_two_ranks(sp.csr_matrix(A), tmp_path / "rotated.petsc")
     assert proc.returncode == 0 and "strongly anisotropic rows" in proc.stdout, proc.stdout + proc.stderr
-    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8, proc.stdout
+
+
+def test_icc_for_anisotropy_is_not_taken_by_singular_or_isotropic_matrices_and_left_when_values_lose_it():
+    """No trial where the positive couplings weigh little (P1 triangles) or the matrix is singular (rotated
+    anisotropy with no-flux walls and the constant attached: the trial's ball is not singular, but ICC(0) of the
+    whole matrix stalled); new values of the ICC(0) pattern that lose the weight (the same stencil, eps 1) make a new
+    analysis, the two-level method's."""
+    from petsc_htp.twolevel import incomplete
+
+    T, t = CASES["fem_tri"](12000, 0)
+    assert incomplete.positive_weight(sp.csr_matrix(T)) < incomplete.WEIGHT
+    A, b = CASES["aniso_e0.001_a45"](12000, 0)
+    A = sp.csr_matrix(A)
+    N = (A - sp.diags(np.asarray(A.sum(axis=1)).ravel())).tocsr()         # row sums 0: the no-flux matrix
+    N.sort_indices()
+    r = np.random.default_rng(0).standard_normal(N.shape[0])
+    reason, its, relres, ksp, _ = solve(N, r - r.mean())
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp), (reason, its, relres)
+    reason, its, relres, ksp, mat = solve(A, b)
+    ctx = ksp.getPC().getPythonContext()
+    assert lines(ksp).startswith("whole matrix: ICC(0)") and ctx.analysis_count == 1
+    side = int(round(A.shape[0] ** 0.5))
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    eps1 = sp.csr_matrix(foreign.anisotropic(side, 1.0, np.pi / 4)[0])
+    iso = sp.csr_matrix((np.asarray(eps1[rows, A.indices]).ravel(), A.indices, A.indptr), shape=A.shape)   # A's pattern
+    mat.setValuesCSR(iso.indptr, iso.indices, iso.data)
+    mat.assemble()
+    reason, its, relres, _, _ = solve(iso, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
 
 
 def test_the_icc_trial_window_is_a_ball_of_the_graph():
     """The trial's rows on a large matrix: a graph ball of TRIAL_ROWS rows about the middle row, sorted (a square
-    patch of a grid, not the strip of its leading rows); the whole matrix where it is smaller."""
+    patch of a grid, not the strip of its leading rows), or about the next coupled row where the middle one is
+    decoupled; the whole matrix where it is smaller."""
     from petsc_htp.twolevel import incomplete
 
     side = 301                                      # the middle row is the grid's centre
@@ -395,6 +427,9 @@ def test_the_icc_trial_window_is_a_ball_of_the_graph():
     x, y = rows % side, rows // side
     assert 80 < np.ptp(x) < 100 and 80 < np.ptp(y) < 100, (np.ptp(x), np.ptp(y))     # a diamond of radius ~45
     assert np.array_equal(incomplete.window(grid[:1000, :1000].tocsr(), 4000), np.arange(1000))
+    apart = sp.block_diag([grid, sp.identity(3), grid]).tocsr()            # the middle row decoupled, then a grid
+    rows = incomplete.window(apart, 4000)
+    assert rows.size == 4000 and rows.min() >= grid.shape[0] + 3            # the ball grows in the next coupled part
 
 
 def test_the_whole_graphs_growth_is_the_graph_shapes():

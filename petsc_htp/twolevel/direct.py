@@ -21,7 +21,6 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
-from .dominance import MARGIN, margin
 from .inner import configured_pc, set_up
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
@@ -55,15 +54,17 @@ class DirectPC:
         Options prefix of the factor: ``<prefix>leaf_``.
     why : str, optional
         Why the whole matrix is factored (None: it is small enough).
-    dominant : bool
-        Chosen for the rows' diagonal dominance (:mod:`.dominance`): new values that lose it call for a new analysis.
+    holds : callable, optional
+        (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal dominance,
+        :func:`.dominance.holds`; their anisotropy, :func:`.incomplete.holds`): values that lose it call for a new
+        analysis.
     """
 
     whole = True            # one factor of the whole matrix: no leaves, so the rows' split over the ranks costs nothing
 
-    def __init__(self, mat, rows, kind, prefix, why=None, dominant=False):
+    def __init__(self, mat, rows, kind, prefix, why=None, holds=None):
         t0 = time.perf_counter()
-        self.mat, self.kind, self.prefix, self.why, self.dominant = mat, kind, prefix + "leaf_", why, dominant
+        self.mat, self.kind, self.prefix, self.why, self.holds = mat, kind, prefix + "leaf_", why, holds
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
         self.G = self.pc = None
@@ -73,8 +74,8 @@ class DirectPC:
 
     def moved(self, rows, penalty=None) -> bool:
         """Whether new values ``rows`` (this rank's) call for a new analysis: only where the factor was chosen for
-        the rows' diagonal dominance and this rank's rows lost it (:data:`.dominance.MARGIN`)."""
-        return self.dominant and not margin(rows, self.mat.getOwnershipRange()[0]) >= MARGIN
+        what the rows have (:attr:`holds`) and this rank's rows lost it."""
+        return self.holds is not None and not self.holds(rows, self.mat.getOwnershipRange()[0])
 
     def inner_pcs(self) -> dict:
         """The factor."""

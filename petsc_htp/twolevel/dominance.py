@@ -70,6 +70,11 @@ def pinned(rows, start) -> np.ndarray:
     return high[(off > 0) & (diag[high] >= PINNED * off)]
 
 
+def holds(rows, start) -> bool:
+    """Whether this rank's ``rows`` (their diagonal in column ``start`` + row) are still dominant by :data:`MARGIN`."""
+    return margin(rows, start) >= MARGIN
+
+
 def describe(c) -> str:
     """Why ICC(0) serves a matrix of margin ``c`` (``-ksp_view``)."""
     if c == float("inf"):

@@ -1,16 +1,19 @@
 """Where ICC(0) of the whole matrix beats a coarse space: strongly anisotropic rows that a short trial confirms.
 
-Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01,
-FD or FE, any angle but the grid's own for FD) holds positive off-diagonal couplings that weigh a fifth or more
-of the median row's diagonal. Leaves of 10-30 rows cannot follow such couplings and the two-level method takes
-40-155 CG iterations (5.9 s and 16 s at 1M rows), where ICC(0) of the whole matrix, whose pattern holds the
-stencil's diagonal couplings, takes 31-37 at 65 536 rows and 60-103 at 1M (44-57 ms against 167-323, 1.8-3.6 s
-against 5.9-16 s; ``results/rotated-20261127``). The same weight also marks matrices where ICC(0) loses as N
-grows (2-D elasticity, eps = 0.1, a Laplacian squared: 95-267 ICC iterations): a trial tells them apart.
-:data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side, the matrix's own
-numbering (a random one takes ICC(0) to 600 iterations, and the trial sees it), must bring the residual below
-:data:`TRIAL_DROP`: 0.02-0.03 on the strongly anisotropic rows, 1.1-7 on the others. Only rows of that weight pay
-for the trial (none of the foreign study's other matrices).
+Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
+at about 27-63 degrees, FE within about 29 degrees of the axes) holds positive off-diagonal couplings that weigh a
+fifth or more of the median row's diagonal. Leaves of 10-30 rows cannot follow such couplings, and the two-level
+method took 40-153 CG iterations at 65 536 rows, at 1M rows 41 (eps 0.01, 30 degrees, 4.5 s) and 2000 without
+converging (eps 0.001, 45 degrees); ICC(0) of the whole matrix, whose 9-point pattern holds the strong couplings,
+takes 14-37 at 65 536 rows and 70-100 at 1M (``results/rotated-20261127``). The same weight also marks rows where
+ICC(0) loses as N grows (eps 0.1: 70-95 ICC iterations at 65 536 rows against the two-level method's 24-25), and a
+random numbering takes ICC(0) to 600 iterations: a trial tells them apart. :data:`TRIAL_ITS` CG iterations with ICC(0)
+from zero on a fixed random right-hand side, on a graph ball of at most :data:`TRIAL_ROWS` rows of each rank's block
+in the matrix's own numbering, must bring the residual below :data:`TRIAL_DROP` (0.02-0.06 on the strongly
+anisotropic rows, 1.1-7 on the others at 65 536 rows). Only rows of at most :data:`STENCIL` stored entries whose
+positive couplings weigh :data:`WEIGHT` pay for the trial (none of the foreign study's other matrices), and a
+singular matrix never takes it: the ball is not singular, and ICC(0) of the whole Neumann matrix stalled (500
+iterations at 70 225 rows, the two-level method 95).
 """
 from __future__ import annotations
 
@@ -20,11 +23,11 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .aggregation import SAMPLE_ROWS
 from .csr import row_entries
-from .graphshape import graph_shape
+from .nullspace import NULL_TOL
 from ..petscmat import diagonal_block
 
 WEIGHT = 0.2            # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
-STENCIL = 10.0          # ... where rows hold at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
+STENCIL = 10.0          # ... in rows of at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows
 TRIAL_DROP = 0.1        # ... whose residual must fall below this times the first
@@ -34,60 +37,75 @@ def why_icc(mat, A, per_row, coll):
     """Why ICC(0) of the whole matrix (of each rank's diagonal block on several ranks) serves ``mat`` (this rank's
     rows ``A``, scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), or None: rows hold at most
     :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT` of the diagonal on every rank
-    (:func:`positive_weight`), every rank's graph is 2-D (P1 tets, whose obtuse elements' positive couplings weigh as
-    much, paid 77 ms for a failed trial at 64 000 rows) and every rank's trial brings its residual below
-    :data:`TRIAL_DROP` (:func:`trial_drop` on its block). Collective."""
+    (:func:`holds`), the matrix is not singular (no null space attached, not every row sum vanishing) and every
+    rank's trial brings its residual below :data:`TRIAL_DROP` (:func:`trial_drop` on its :func:`window`).
+    Collective."""
     if per_row > STENCIL:
         return None
+    start = mat.getOwnershipRange()[0]
+    weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
+    if not weight >= WEIGHT or mat.getNullSpace().handle or not coll.any(not _null_rows(A, start)):
+        return None
     with diagonal_block(mat, A) as block:
-        weight = coll.min_array(np.array([positive_weight(block)]))[0]
-        if not weight >= WEIGHT:
-            return None
-        dim = coll.max_array(np.array([graph_shape(block, want_weak=False, samples=8).dim]))[0]
-        if dim != 2:
-            return None
         rows = window(block)
-    drop = coll.max_array(np.array([trial_drop(mat.getDiagonalBlock(), rows)]))[0]
+        small = rows.size < min(TRIAL_ROWS, block.shape[0]) // 2
+    drop = coll.max_array(np.array([np.inf if small else trial_drop(mat.getDiagonalBlock(), rows)]))[0]
     if not drop <= TRIAL_DROP:
         return None
     return (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal; ICC(0) took a trial residual "
             f"to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space does not pay")
 
 
-def positive_weight(A, rows=SAMPLE_ROWS) -> float:
-    """The median over about ``rows`` evenly spaced rows of a square CSR ``A`` of their positive off-diagonal entries'
-    sum over |a_ii| (0 where the diagonal is 0)."""
+def holds(rows, start) -> bool:
+    """Whether new values ``rows`` (a rank's, their diagonal in column ``start`` + row) keep the positive couplings'
+    weight (:data:`WEIGHT`) that chose ICC(0)."""
+    return positive_weight(rows, start) >= WEIGHT
+
+
+def positive_weight(A, start=0, rows=SAMPLE_ROWS) -> float:
+    """The median over about ``rows`` evenly spaced rows of a rank's CSR rows ``A`` (their diagonal in column
+    ``start`` + row) of their positive off-diagonal entries' sum over |a_ii| (0 where the diagonal is 0)."""
     n = A.shape[0]
     if n == 0:
-        return 0.0
+        return np.inf                                      # no rows: no say in the least over the ranks
     picked = np.arange(0, n, max(1, n // rows))
     where, owner = row_entries(A.indptr, picked)
     values = A.data[where]
-    lift = (values > 0) & (A.indices[where] != picked[owner])
+    lift = (values > 0) & (A.indices[where] != picked[owner] + start)
     total = np.bincount(owner[lift], values[lift], minlength=picked.size).astype(float)   # int where none lift
-    diag = np.abs(A.diagonal()[picked])
+    diag = np.abs(A.diagonal(k=start)[picked])
     return float(np.median(np.divide(total, diag, out=np.zeros_like(total), where=diag > 0)))
 
 
+def _null_rows(A, start) -> bool:
+    """Whether every one of a rank's rows ``A`` has a vanishing sum (:data:`.nullspace.NULL_TOL`): a Neumann matrix."""
+    scale = np.abs(A.diagonal(k=start)).max(initial=0.0)
+    return bool(np.all(np.abs(np.asarray(A.sum(axis=1)).ravel()) <= NULL_TOL * scale))
+
+
 def window(A, size=TRIAL_ROWS) -> np.ndarray:
-    """The rows of a graph ball of at most ``size`` rows about the middle row of a square CSR ``A``, sorted: a patch
-    of the domain in the matrix's own numbering. The leading rows would not do: in a 1024^2
-    grid they are a strip 64 rows high, on which ICC(0) converged fast whatever the anisotropy."""
+    """The rows of a graph ball of at most ``size`` rows about the first coupled row from the middle of a square CSR
+    ``A``, sorted: a patch of the domain in the matrix's own numbering (fewer rows where that row's component is
+    smaller; :func:`why_icc` then takes no trial). The leading rows would not do: in a 1024^2 grid they are a strip
+    64 rows high, on which ICC(0) converged fast whatever the anisotropy."""
     n = A.shape[0]
     if n <= size:
         return np.arange(n)
-    order = breadth_first_order(A, n // 2, directed=True, return_predecessors=False)
+    coupled = np.flatnonzero(np.diff(A.indptr)[n // 2:] > 1)
+    seed = n // 2 + int(coupled[0]) if coupled.size else n // 2
+    order = breadth_first_order(A, seed, directed=True, return_predecessors=False)
     return np.sort(order[:size])
 
 
 def trial_drop(mat, rows) -> float:
     """The residual after :data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side in
     [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of a
-    sequential ``mat`` (a rank's diagonal block): a cost that does not grow with N (at 1M rows the whole matrix's
-    trial took 0.3-0.7 s, and its residual grew on every kind of row); inf where PETSc's factor failed."""
+    sequential ``mat`` (a rank's diagonal block): iterations whose cost does not grow with N (at 1M rows the whole
+    matrix's trial took 0.3-0.7 s, and its residual grew on every kind of row); inf where PETSc's factor failed, CG
+    broke down or a residual is not finite."""
     n = rows.size
-    index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-    part = mat.createSubMatrix(index, index) if n < mat.getSize()[0] else mat
+    index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF) if n < mat.getSize()[0] else None
+    part = mat if index is None else mat.createSubMatrix(index, index)
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
     b, x = part.createVecLeft(), part.createVecRight()
     try:
@@ -112,7 +130,7 @@ def trial_drop(mat, rows) -> float:
             return np.inf
         return float(history[-1] / history[0])
     finally:
-        for obj in (ksp, b, x, index) + ((part,) if part is not mat else ()):
+        for obj in (ksp, b, x) + (() if index is None else (index, part)):
             obj.destroy()
 
 
