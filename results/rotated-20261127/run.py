@@ -5,7 +5,9 @@ one block per rank) and GAMG (PETSc's defaults), one solve
 each from a fresh Mat and KSP after a warm-up solve, CG to rtol 1e-8 in the unpreconditioned norm: setup + solve ms
 (iterations) [true relative residual]. Cases: the foreign study's two rotated anisotropies, PyAMG's FE stencils that
 pass the trial, and matrices whose positive couplings weigh as much but fail it (eps 0.1, 2-D elasticity, a
-Laplacian squared plus the Laplacian): there the trial is what HTPPC pays over its two-level method.
+Laplacian squared plus the Laplacian): there the trial is what HTPPC pays over its two-level method. Named on the
+command line only: cases the rule leaves to the two-level method (grid-aligned FD anisotropy, 3-D anisotropy, the
+45-degree case numbered at random).
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [mpiexec -n 2] python results/rotated-20261127/run.py [N] [case ...]
 """
@@ -13,7 +15,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 from pyamg.gallery import diffusion_stencil_2d, linear_elasticity, poisson, stencil_grid
+
+from petsc_htp.bench.foreigncases import CASES
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "units-20261127"))
 import run as units  # noqa: E402
@@ -33,7 +38,18 @@ def stencil(kind, eps, degrees):
 EXTRA = {"FE_0.001_0": stencil("FE", 0.001, 0), "FE_0.01_15": stencil("FE", 0.01, 15),
          "FD_0.1_45": stencil("FD", 0.1, 45), "FE_0.1_0": stencil("FE", 0.1, 0),
          "elasticity": lambda n: linear_elasticity((int(round((n / 2) ** 0.5)),) * 2, format="csr")[0],
-         "laplacian2+laplacian": lambda n: (lambda L: L @ L + L)(poisson((int(round(n ** 0.5)),) * 2, format="csr"))}
+         "laplacian2+laplacian": lambda n: (lambda L: L @ L + L)(poisson((int(round(n ** 0.5)),) * 2, format="csr")),
+         "FD_0.001_0": stencil("FD", 0.001, 0),
+         "aniso3d_z0.001": lambda n: (lambda p: sp.kronsum(sp.kronsum(p, p), 1e-3 * p).tocsr())(
+             poisson((int(round(n ** (1 / 3))),), format="csr")),
+         "shuffled_e0.001_a45": lambda n: shuffled(CASES["aniso_e0.001_a45"](n, 0)[0])}
+NOT_RUN_BY_DEFAULT = ("FD_0.001_0", "aniso3d_z0.001", "shuffled_e0.001_a45")     # the cases the rule leaves out
+
+
+def shuffled(A):
+    """``A`` with its rows and columns in a random order."""
+    p = np.random.default_rng(0).permutation(A.shape[0])
+    return sp.csr_matrix(A)[p][:, p].tocsr()
 
 
 def with_rhs(make):
@@ -50,4 +66,4 @@ def alone(A, b):
 
 if __name__ == "__main__":
     units.CASES.update({name: with_rhs(make) for name, make in EXTRA.items()})
-    units.table(alone, ["aniso_e0.01_a30", "aniso_e0.001_a45", *EXTRA])
+    units.table(alone, ["aniso_e0.01_a30", "aniso_e0.001_a45", *(c for c in EXTRA if c not in NOT_RUN_BY_DEFAULT)])
