@@ -9,8 +9,9 @@ Laplacian squared plus the Laplacian): there the trial is what HTPPC pays over i
 command line only: cases the rule leaves to the two-level method (grid-aligned FD anisotropy, 3-D anisotropy, the
 45-degree case numbered at random).
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [mpiexec -n 2] python results/rotated-20261127/run.py [N] [case ...]
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [METHODS=htppc,icc] [mpiexec -n 2] python results/rotated-20261127/run.py [N] [case ...]
 """
+import os
 import sys
 from pathlib import Path
 
@@ -65,5 +66,9 @@ def alone(A, b):
 
 
 if __name__ == "__main__":
+    if os.environ.get("METHODS"):
+        keep = os.environ["METHODS"].split(",")
+        for name in [m for m in units.METHODS if m not in keep]:
+            del units.METHODS[name]
     units.CASES.update({name: with_rhs(make) for name, make in EXTRA.items()})
     units.table(alone, ["aniso_e0.01_a30", "aniso_e0.001_a45", *(c for c in EXTRA if c not in NOT_RUN_BY_DEFAULT)])
