@@ -9,7 +9,8 @@ Laplacian squared plus the Laplacian): there the trial is what HTPPC pays over i
 command line only: cases the rule leaves to the two-level method (grid-aligned FD anisotropy, 3-D anisotropy, the
 45-degree case numbered at random).
 
-    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [METHODS=htppc,icc] [mpiexec -n 2] python results/rotated-20261127/run.py [N] [case ...]
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 [METHODS=htppc,icc] [mpiexec -n 2] \
+        python results/rotated-20261127/run.py [N] [case ...]
 """
 import os
 import sys
