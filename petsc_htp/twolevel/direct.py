@@ -3,8 +3,10 @@ incomplete (ICC(0)).
 
 Below the sizes of :func:`petsc_htp.twolevel.sizing.whole_factor`, a factor of the whole matrix costs less than
 building leaves, a coarse space and their products (sizing's docstring has the measurement). On one rank a singular
-matrix (an attached null space, or vanishing row sums on a connected component) is grounded first: one diagonal
-entry of each null component is raised by its own magnitude, so the factor exists and is exact on vectors
+matrix (an attached null space, or vanishing row sums on a connected component; for ICC(0), whose shift takes a
+null component among regular ones, only where every row sum vanishes: the components' search was 0.35 of the 1.2 ms
+setup of PyAMG's 600-row bar) is grounded first: one diagonal entry of each null component is raised by its own
+magnitude, so the factor exists and is exact on vectors
 orthogonal to the component's constant, which is what a KSP with the null space attached hands over; and the
 Cholesky factor's inertia checks that the matrix is positive (semi)definite: negative pivots are an error that says
 so. ICC(0)'s shift keeps its pivots positive, so there an indefinite matrix is named by the KSP (CG stops with
@@ -116,10 +118,10 @@ class DirectPC:
         rank)."""
         nsp, diag = self.mat.getNullSpace(), rows.diagonal()
         rowsum = None if nsp.handle else np.asarray(rows.sum(axis=1)).ravel()
-        if not every and rowsum is not None and not np.any(
-                np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)):
-            self.null_components = 0                     # no row sum vanishes: no component can be null
-            return self.mat
+        vanish = None if rowsum is None else np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)
+        if not every and vanish is not None and not (vanish.all() if self.kind == "icc" else vanish.any()):
+            self.null_components = 0                     # no component can be null (ICC(0): where some row sum
+            return self.mat                              # stays, its shift takes a null component; 0.35 of 1.2 ms)
         if self.comp_of_row is None:
             self.n_comp, self.comp_of_row = nullspace.graph_components(rows)
         if every:
