@@ -1,6 +1,7 @@
 """HTPPC's PETSc log events: one per setup phase and one per part of an application (``-log_view``).
 
-Like PCHPDDM's, the events nest: ``HTPSetup`` holds ``HTPAnalysis`` (a new pattern) and the numeric phases,
+Like PCHPDDM's, the events nest: ``HTPSetup`` holds ``HTPChoice`` and ``HTPAnalysis`` (a new pattern) and the
+numeric phases,
 ``HTPApply`` the parts of one application. :func:`phase` also keeps each phase's wall time for ``-ksp_view``.
 """
 from __future__ import annotations
@@ -11,6 +12,7 @@ import time
 from petsc4py import PETSc
 
 EVENTS = {"HTPSetup": "setup of the preconditioner (analysis when the pattern changed, then the numeric step)",
+          "HTPChoice": "which method serves the pattern (its graph, dominance, the anisotropy trial; once per pattern)",
           "HTPAnalysis": "leaves, index maps, components and every matrix's pattern (once per pattern)",
           "HTPLeafFactor": "numeric factorisation of the leaf blocks",
           "HTPCoarseSpace": "the coarse vectors of every leaf",

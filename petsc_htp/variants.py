@@ -29,6 +29,7 @@ from importlib import import_module
 import numpy as np
 
 from .collective import Collective
+from .events import phase
 from .twolevel.config import Config
 
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
@@ -87,14 +88,19 @@ class TwoLevel:
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
-        kind = self.direct(mat, A, coords)
+        times = {}
+        with phase("HTPChoice", times, "choice"):
+            kind = self.direct(mat, A, coords)
         if kind is not None:
             from .twolevel.direct import DirectPC
 
-            return DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.holds)
-        from .twolevel.composed import TwoLevelPC
+            setup = DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.holds)
+        else:
+            from .twolevel.composed import TwoLevelPC
 
-        return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+            setup = TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+        setup.analysis_ms += times["choice"]           # -ksp_view's analysis: the choice (a trial) included
+        return setup
 
     def direct(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on

@@ -367,6 +367,7 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
         text = lines(ksp)
         assert reason > 0 and relres <= 1e-8 and its <= 30, (case, its, relres)
         assert text.startswith("whole matrix: ICC(0)") and "strongly anisotropic rows" in text, text
+        assert float(text.split("setup ms: analysis ")[1].split(";")[0]) > 0, text     # the trial is counted
         reason, its2, relres, ksp, _ = solve(A, b, htp_direct_max="0")
         text = lines(ksp)
         assert reason > 0 and relres <= 1e-8 and its2 > its, (its, its2)
