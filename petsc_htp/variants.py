@@ -29,7 +29,6 @@ from importlib import import_module
 import numpy as np
 
 from .collective import Collective
-from .events import phase
 from .twolevel.config import Config
 
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
@@ -88,6 +87,7 @@ class TwoLevel:
                 f"-htp_coarse learned is 2-D only: the coarse network's features are 2-D cell coordinates and "
                 f"it was trained on 2-D scenes, but {coords.shape[1]}-D coordinates are attached; use "
                 "-htp_coarse eig (the default) or const")
+        from .events import phase                       # petsc4py: not at import (the fast path imports none)
         times = {}
         with phase("HTPChoice", times, "choice"):
             kind = self.direct(mat, A, coords)
