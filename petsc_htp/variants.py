@@ -168,7 +168,7 @@ class TwoLevel:
         return "icc" if coll.size == 1 else "bjacobi"
 
     def _anisotropic(self, mat, A, coll, per_row):
-        """'icc' (on several ranks 'bjacobi') where the rows are strongly anisotropic
+        """'icc' (on several ranks 'asm', each rank's block grown) where the rows are strongly anisotropic
         (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
         from .twolevel import incomplete
 
@@ -176,7 +176,7 @@ class TwoLevel:
         if self.why is None:
             return None
         self.holds = incomplete.holds
-        return "icc" if coll.size == 1 else "bjacobi"
+        return "icc" if coll.size == 1 else "asm"
 
     @staticmethod
     def _block_shape(mat, A):
