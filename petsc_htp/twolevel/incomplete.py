@@ -34,7 +34,7 @@ TRIAL_DROP = 0.1        # ... whose residual must fall below this times the firs
 
 
 def why_icc(mat, A, per_row, coll):
-    """Why ICC(0) of the whole matrix (of each rank's diagonal block on several ranks) serves ``mat`` (this rank's
+    """Why ICC(0) of the whole matrix (of each rank's grown block on several ranks) serves ``mat`` (this rank's
     rows ``A``, scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), or None: rows hold at most
     :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT` of the diagonal on every rank
     (:func:`holds`), the matrix is not singular (no null space attached, not every row sum vanishing) and every
