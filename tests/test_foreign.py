@@ -355,8 +355,8 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
 def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
     """Rotated anisotropy (eps 0.01 and 0.001, 9-point, above the small-matrix sizes): the positive couplings weigh a
     fifth of the diagonal and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole matrix, -ksp_view says
-    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0: standard passes, eig space).
-    Numbered at random, the same matrix fails the trial (ICC(0) follows no line there) and stays two-level. On two
+    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0: standard passes, eig space);
+    penalty rows keep it. Numbered at random, the same matrix fails the trial (ICC(0) follows no line there) and stays two-level. On two
     ranks ICC(0) of each rank's block grown by 4 layers (PCASM)."""
     from petsc_htp.twolevel import incomplete
 
@@ -372,6 +372,10 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
         text = lines(ksp)
         assert reason > 0 and relres <= 1e-8 and its2 > its, (its, its2)
         assert "second pass standard" in text and "coarse: eig (" in text, text
+    A, b = CASES["aniso_e0.001_a45"](65536, 0)                     # penalty rows (1e30) keep ICC(0): 0.13
+    held = (sp.csr_matrix(A) + sp.diags(A.diagonal().max() * 1e30 * (np.arange(A.shape[0]) % 300 == 0))).tocsr()
+    reason, _, relres, ksp, _ = solve(held, b)                      # on the trial, 0.03 without them
+    assert reason > 0 and relres <= 1e-8 and lines(ksp).startswith("whole matrix: ICC(0)"), lines(ksp)
     A, b = CASES["aniso_e0.001_a45"](12000, 0)
     p = np.random.default_rng(0).permutation(A.shape[0])
     shuffled = sp.csr_matrix(A)[p][:, p].tocsr()
