@@ -376,6 +376,11 @@ def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
     held = (sp.csr_matrix(A) + sp.diags(A.diagonal().max() * 1e30 * (np.arange(A.shape[0]) % 300 == 0))).tocsr()
     reason, _, relres, ksp, _ = solve(held, b)                      # on the trial, 0.03 without them
     assert reason > 0 and relres <= 1e-8 and lines(ksp).startswith("whole matrix: ICC(0)"), lines(ksp)
+    from pyamg.gallery import diffusion_stencil_2d, stencil_grid
+
+    fe30 = stencil_grid(diffusion_stencil_2d(0.001, np.pi / 6, "FE"), (110, 110), format="csr")   # weight 0.198
+    reason, its, relres, ksp, _ = solve(fe30, np.random.default_rng(1).standard_normal(fe30.shape[0]))
+    assert reason > 0 and relres <= 1e-8 and its <= 30 and lines(ksp).startswith("whole matrix: ICC(0)"), its
     A, b = CASES["aniso_e0.001_a45"](12000, 0)
     p = np.random.default_rng(0).permutation(A.shape[0])
     shuffled = sp.csr_matrix(A)[p][:, p].tocsr()
