@@ -353,11 +353,12 @@ def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_pa
 
 
 def test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
-    """Rotated anisotropy (eps 0.01 and 0.001, 9-point, above the small-matrix sizes): the positive couplings weigh a
-    fifth of the diagonal and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole matrix, -ksp_view says
-    why, and it takes fewer iterations than the two-level method (-htp_direct_max 0: standard passes, eig space);
-    penalty rows keep it. Numbered at random, the same matrix fails the trial (ICC(0) follows no line there) and stays two-level. On two
-    ranks ICC(0) of each rank's block grown by 4 layers (PCASM)."""
+    """Rotated anisotropy (eps 0.01 and 0.001, 9-point, above the small-matrix sizes; FE at 30 degrees): the positive
+    couplings weigh 0.15 of the diagonal or more and ICC(0)'s trial confirms, so one rank takes ICC(0) of the whole
+    matrix, -ksp_view says why, and it takes fewer iterations than the two-level method (-htp_direct_max 0:
+    standard passes, eig space); penalty rows keep it. Numbered at random, the same matrix fails the trial (ICC(0)
+    follows no line there) and stays two-level. On two ranks ICC(0) of each rank's block grown by 4 layers
+    (PCASM)."""
     from petsc_htp.twolevel import incomplete
 
     for case in ("aniso_e0.01_a30", "aniso_e0.001_a45"):

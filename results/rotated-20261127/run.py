@@ -1,5 +1,6 @@
 """Rotated anisotropy: HTPPC as it comes (ICC(0) of the whole matrix, of each rank's block on several, where the rows'
-positive couplings weigh a fifth of the diagonal and ICC(0)'s trial confirms; petsc_htp.twolevel.incomplete),
+positive couplings weigh 0.15 of the diagonal (0.2 until d746382) and ICC(0)'s trial confirms;
+petsc_htp.twolevel.incomplete),
 HTPPC's two-level method (-htp_direct_max 0: what HTPPC did on these matrices before), ICC(0) alone (PCBJACOBI's,
 one block per rank) and GAMG (PETSc's defaults), one solve
 each from a fresh Mat and KSP after a warm-up solve, CG to rtol 1e-8 in the unpreconditioned norm: setup + solve ms
