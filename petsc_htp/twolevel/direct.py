@@ -126,7 +126,7 @@ class DirectPC:
         rank)."""
         nsp, diag = self.mat.getNullSpace(), rows.diagonal()
         rowsum = None if nsp.handle else np.asarray(rows.sum(axis=1)).ravel()
-        vanish = None if rowsum is None else np.abs(rowsum) <= nullspace.NULL_TOL * np.abs(diag).max(initial=0.0)
+        vanish = None if rowsum is None else nullspace.vanishing(rowsum, diag)
         if not every and vanish is not None and not (vanish.all() if self.kind == "icc" else vanish.any()):
             self.null_components = 0                     # no component can be null (ICC(0): where some row sum
             return self.mat                              # stays, its shift takes a null component; 0.35 of 1.2 ms)

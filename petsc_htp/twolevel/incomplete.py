@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .aggregation import SAMPLE_ROWS
 from .csr import row_entries
-from .nullspace import NULL_TOL
+from .nullspace import vanishing
 from ..petscmat import diagonal_block
 
 WEIGHT = 0.15           # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
@@ -81,9 +81,9 @@ def positive_weight(A, start=0, rows=SAMPLE_ROWS) -> float:
 
 
 def _null_rows(A, start) -> bool:
-    """Whether every one of a rank's rows ``A`` has a vanishing sum (:data:`.nullspace.NULL_TOL`): a Neumann matrix."""
-    scale = np.abs(A.diagonal(k=start)).max(initial=0.0)
-    return bool(np.all(np.abs(np.asarray(A.sum(axis=1)).ravel()) <= NULL_TOL * scale))
+    """Whether every one of a rank's rows ``A`` has a vanishing sum (:func:`.nullspace.vanishing`): a Neumann
+    matrix."""
+    return bool(np.all(vanishing(np.asarray(A.sum(axis=1)).ravel(), A.diagonal(k=start))))
 
 
 def window(A, size=TRIAL_ROWS) -> np.ndarray:

@@ -132,6 +132,11 @@ def components(n_pieces, edges) -> tuple:
     return _connected(graph.indptr, graph.indices, n_pieces)
 
 
+def vanishing(rowsum, diag) -> np.ndarray:
+    """Boolean (n,): rows whose |row sum| is at most NULL_TOL times the largest |a_ii| (``diag``)."""
+    return np.abs(rowsum) <= NULL_TOL * np.abs(diag).max(initial=0.0)
+
+
 def null_by_rowsums(rowsum, diag, comp_of_row, n_comp, reduce_max=None) -> np.ndarray:
     """Boolean (C,): components on which every |row sum| is at most NULL_TOL times the largest |a_ii|.
 
