@@ -108,7 +108,7 @@ class TwoLevel:
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
         (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi', grown for anisotropy,
         'asm') where the rows are diagonally dominant (:meth:`_dominant`) or, bare, the graph is no mesh
-        (:meth:`_no_mesh`) or the rows strongly anisotropic (:meth:`_anisotropic`), :attr:`why` saying so."""
+        (:meth:`_no_mesh`) or the rows shifted or strongly anisotropic (:meth:`_incomplete`), :attr:`why` saying so."""
         from .twolevel import sizing
 
         self.why, self.holds = None, None
@@ -126,8 +126,8 @@ class TwoLevel:
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
-                kind = self._no_mesh(mat, A, coll) or self._anisotropic(mat, A, coll, per_row)
-            return kind
+                kind = self._no_mesh(mat, A, coll)
+            return kind or self._incomplete(mat, A, coll, per_row, coords is None)
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -167,16 +167,16 @@ class TwoLevel:
                     "space does not pay")
         return "icc" if coll.size == 1 else "bjacobi"
 
-    def _anisotropic(self, mat, A, coll, per_row):
-        """'icc' (on several ranks 'asm', each rank's block grown) where the rows are strongly anisotropic
-        (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
+    def _incomplete(self, mat, A, coll, per_row, bare):
+        """'icc' (on several ranks 'bjacobi', or 'asm' with each rank's block grown for anisotropy) where the rows are
+        shifted or, ``bare``, strongly anisotropic and a trial confirms it (:func:`.twolevel.incomplete.why_icc`), else
+        None (collective)."""
         from .twolevel import incomplete
 
-        self.why = incomplete.why_icc(mat, A, per_row, coll)
+        self.why, self.holds, grown = incomplete.why_icc(mat, A, per_row, coll, bare)
         if self.why is None:
             return None
-        self.holds = incomplete.holds
-        return "icc" if coll.size == 1 else "asm"
+        return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"
 
     @staticmethod
     def _block_shape(mat, A):

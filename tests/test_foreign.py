@@ -424,6 +424,36 @@ def test_icc_for_anisotropy_is_not_taken_by_singular_or_isotropic_matrices_and_l
     assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
 
 
+def test_a_heat_step_with_shifted_rows_gets_icc_of_the_whole_matrix(tmp_path):
+    """One backward-Euler step of the heat equation on P1 tetrahedra, M + dt K at dt = 10 h^2 (mass couplings of
+    both signs, so no diagonal dominance): its rows sum to SHIFT of the diagonal or more and ICC(0)'s trial on a
+    small ball confirms, so one rank takes ICC(0) of the whole matrix and -ksp_view says why; new values that lose
+    the shift (the stiffness alone, on the same pattern) make a new analysis, the two-level method's; a long step
+    (1000 h^2) and the Laplacian stay two-level. On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
+    from petsc_htp.twolevel import dominance, incomplete
+
+    A, b = meshes.p1_heat(3, 12000, 10.0)
+    assert incomplete.row_sum_share(A) >= incomplete.SHIFT and dominance.margin(A, 0) < dominance.MARGIN
+    reason, its, relres, ksp, mat = solve(A, b)
+    ctx = ksp.getPC().getPythonContext()
+    assert reason > 0 and relres <= 1e-8 and its <= 40, (its, relres)
+    assert lines(ksp).startswith("whole matrix: ICC(0)") and "shifted rows" in lines(ksp), lines(ksp)
+    K, _ = meshes.p1_laplacian(3, 12000)
+    assert np.array_equal(K.indptr, A.indptr) and np.array_equal(K.indices, A.indices)
+    mat.setValuesCSR(K.indptr, K.indices, K.data)
+    mat.assemble()
+    reason, _, relres, _, _ = solve(K, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
+    long_step, _ = meshes.p1_heat(3, 12000, 1000.0)
+    assert incomplete.row_sum_share(long_step) < incomplete.SHIFT
+    reason, _, relres, ksp, _ = solve(long_step, b)
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+    proc = _on_two_ranks(A, tmp_path / "heat.petsc")
+    assert proc.returncode == 0 and "shifted rows" in proc.stdout, proc.stdout + proc.stderr
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
+
+
 def test_the_icc_trial_window_is_a_ball_of_the_graph():
     """The trial's rows on a large matrix: a graph ball of TRIAL_ROWS rows about the middle row, sorted (a square
     patch of a grid, not the strip of its leading rows), or about the next coupled row where the middle one is

@@ -1,4 +1,5 @@
-"""P1 finite-element Laplacians on unstructured simplices: triangles in 2-D, tetrahedra in 3-D.
+"""P1 finite-element Laplacians on unstructured simplices (triangles in 2-D, tetrahedra in 3-D), and the matrix of one
+implicit heat-equation step there, M + dt K.
 
 Nodes are a jittered lattice of the unit square (cube) in a random order, meshed by Delaunay; the boundary
 nodes are Dirichlet and eliminated, so the matrix is SPD with the interior nodes as unknowns, in the
@@ -20,22 +21,55 @@ def _points(dim, side, rng) -> tuple:
     return grid[order] / (side - 1), boundary[order]
 
 
-def stiffness(points, simplices, coefficient=None) -> sp.csr_matrix:
-    """The P1 stiffness matrix of a simplicial mesh (any dimension), with a conductivity per element (default 1)."""
-    n, dim = points.shape
+def _elements(points, simplices):
+    """The simplices that are not flat, their volumes and the gradients of their P1 basis functions (E, d+1, d)."""
+    dim = points.shape[1]
     X = points[simplices]                                   # (E, d+1, d)
     J = X[:, 1:, :] - X[:, :1, :]                           # (E, d, d)
     det = np.linalg.det(J)
     keep = np.abs(det) > 1e-14
-    J, det, simplices = J[keep], det[keep], simplices[keep]
-    kappa = np.ones(keep.sum()) if coefficient is None else coefficient[keep]
     ref = np.vstack([-np.ones((1, dim)), np.eye(dim)])     # reference gradients (d+1, d)
-    G = np.einsum("ad,ekd->eak", ref, np.linalg.inv(J))      # gradients: ref @ J^-T
-    vol = np.abs(det) / np.prod(np.arange(1, dim + 1))
+    G = np.einsum("ad,ekd->eak", ref, np.linalg.inv(J[keep]))   # gradients: ref @ J^-T
+    return keep, np.abs(det[keep]) / np.prod(np.arange(1, dim + 1)), G
+
+
+def _assemble(n, simplices, local) -> sp.csr_matrix:
+    """The n x n matrix summed from the element matrices ``local`` (E, d+1, d+1) of ``simplices``."""
+    k = simplices.shape[1]
+    rows = np.repeat(simplices, k, axis=1).ravel()
+    cols = np.tile(simplices, (1, k)).ravel()
+    return sp.csr_matrix((local.ravel(), (rows, cols)), shape=(n, n))
+
+
+def stiffness(points, simplices, coefficient=None) -> sp.csr_matrix:
+    """The P1 stiffness matrix of a simplicial mesh (any dimension), with a conductivity per element (default 1)."""
+    keep, vol, G = _elements(points, simplices)
+    kappa = np.ones(keep.sum()) if coefficient is None else coefficient[keep]
     K = (kappa * vol)[:, None, None] * np.einsum("eak,ebk->eab", G, G)
-    rows = np.repeat(simplices, dim + 1, axis=1).ravel()
-    cols = np.tile(simplices, (1, dim + 1)).ravel()
-    return sp.csr_matrix((K.ravel(), (rows, cols)), shape=(n, n))
+    return _assemble(len(points), simplices[keep], K)
+
+
+def mass(points, simplices) -> sp.csr_matrix:
+    """The P1 (consistent) mass matrix of a simplicial mesh: vol (1 + delta_ab) / ((d + 1)(d + 2)) per element."""
+    keep, vol, _ = _elements(points, simplices)
+    k = simplices.shape[1]
+    local = (np.ones((k, k)) + np.eye(k)) / (k * (k + 1))
+    return _assemble(len(points), simplices[keep], vol[:, None, None] * local[None])
+
+
+def _mesh(dim, n, seed):
+    """(points, simplices, interior nodes, h): the Delaunay mesh of a jittered lattice, about ``n`` interior nodes."""
+    side = int(round(n ** (1.0 / dim))) + 2
+    points, boundary = _points(dim, side, np.random.default_rng(seed))
+    return points, Delaunay(points).simplices, np.flatnonzero(~boundary), 1.0 / (side - 1)
+
+
+def _interior(A, inner) -> sp.csr_matrix:
+    """``A`` on the ``inner`` nodes (the Dirichlet boundary eliminated), duplicates summed, indices sorted."""
+    A = A[inner][:, inner].tocsr()
+    A.sum_duplicates()
+    A.sort_indices()
+    return A
 
 
 def p1_laplacian(dim, n, seed=0, frame=0) -> tuple:
@@ -43,18 +77,22 @@ def p1_laplacian(dim, n, seed=0, frame=0) -> tuple:
 
     ``seed`` makes the mesh; ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)) drawn from
     it, so frames of one mesh share the pattern and differ in values."""
-    rng = np.random.default_rng(seed)
-    side = int(round(n ** (1.0 / dim))) + 2
-    points, boundary = _points(dim, side, rng)
-    simplices = Delaunay(points).simplices
+    points, simplices, inner, _ = _mesh(dim, n, seed)
     kappa = np.exp(np.random.default_rng([seed, frame]).standard_normal(len(simplices))) if frame else None
-    A = stiffness(points, simplices, kappa)
-    inner = np.flatnonzero(~boundary)
-    A = A[inner][:, inner].tocsr()
-    A.sum_duplicates()
-    A.sort_indices()
+    A = _interior(stiffness(points, simplices, kappa), inner)
     m = A.shape[0]
     return A, np.full(m, 1.0 / m)
+
+
+def p1_heat(dim, n, steps=10.0, seed=0, frame=0) -> tuple:
+    """(A, b): one backward-Euler step of the heat equation on :func:`p1_laplacian`'s mesh, A = M + dt K with the
+    time step dt = ``steps`` h^2 (h the lattice spacing): a mass matrix's positive couplings beside the stiffness's
+    negative ones, rows summing to the mass. ``frame`` > 0 scales dt by e^N(0, 1/4) (a step size control's new
+    step: the pattern stays); b standard normal."""
+    points, simplices, inner, h = _mesh(dim, n, seed)
+    dt = steps * h * h * (np.exp(np.random.default_rng([seed, frame]).normal(0.0, 0.25)) if frame else 1.0)
+    A = _interior(mass(points, simplices) + dt * stiffness(points, simplices), inner)
+    return A, np.random.default_rng([seed, frame, 1]).standard_normal(A.shape[0])
 
 
 def _hex_nodes(side) -> np.ndarray:

@@ -1,4 +1,15 @@
-"""Where ICC(0) of the whole matrix beats a coarse space: strongly anisotropic rows that a short trial confirms.
+"""Where ICC(0) of the whole matrix beats a coarse space: shifted or strongly anisotropic rows that a short trial
+confirms.
+
+Shifted rows: one implicit step of the heat equation, M + dt K, holds a mass matrix's positive couplings beside
+the stiffness's negative ones, so it is not diagonally dominant (:mod:`.dominance`) though its rows sum to the mass,
+and ICC(0) of the whole matrix converges in a number of iterations bounded by the time step. Where the median
+sampled row sums to :data:`SHIFT` of its diagonal or more (a Laplacian's rows sum to 0; P1 tetrahedra at dt = 10 h^2
+0.013, at 1000 h^2 0.00013), ICC(0) of each rank's whole block is tried, without PETSc's shift, up to
+:data:`WHOLE_NNZ` stored entries: at 262 144 rows of tetrahedra a pivot that is not positive called for the shift,
+which took ICC(0) from 15 to 299 iterations, and no ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows
+HTPPC then took 155 and 282 ms (15 and 39 iterations) at dt = h^2 and 10 h^2 against its two-level method's 409
+and 408 (``results/shifted-20261127``).
 
 Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
 at about 22-68 degrees, FE within about 32 degrees of the axes) holds positive off-diagonal couplings that weigh
@@ -12,16 +23,15 @@ random numbering takes ICC(0) to 600 iterations: a trial tells them apart. :data
 from zero on a fixed random right-hand side, on a graph ball of at most :data:`TRIAL_ROWS` rows of each rank's block
 in the matrix's own numbering, must bring the residual below :data:`TRIAL_DROP` (0.02-0.06 on the strongly
 anisotropic rows at 65 536 rows, 0.13 with penalty rows, 0.16 for FE eps 0.01 at 15 degrees at 1M rows, where ICC(0)
-took 3.3 s against the two-level method's 7.9; 0.95-7 on the others at 65 536 and 1M rows). Only rows of at most :data:`STENCIL` stored entries whose
-positive couplings weigh :data:`WEIGHT` pay for the trial (none of the foreign study's other matrices), and a
-singular matrix never takes it: the ball is not singular, and ICC(0) of the whole Neumann matrix stalled (500
-iterations at 70 225 rows, the two-level method 95).
+took 3.3 s against the two-level method's 7.9; 0.95-7 on the others at 65 536 and 1M rows). Only rows of at most
+:data:`STENCIL` stored entries whose positive couplings weigh :data:`WEIGHT` pay for the trial (none of the foreign
+study's other matrices), and a singular matrix never takes it: the ball is not singular, and ICC(0) of the whole
+Neumann matrix stalled (500 iterations at 70 225 rows, the two-level method 95).
 """
 from __future__ import annotations
 
 import numpy as np
 from petsc4py import PETSc
-from scipy.sparse.csgraph import breadth_first_order
 
 from .aggregation import SAMPLE_ROWS
 from .csr import row_entries
@@ -29,34 +39,46 @@ from .nullspace import vanishing
 from ..petscmat import diagonal_block
 
 WEIGHT = 0.15           # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
+SHIFT = 0.0025          # ... or its row sum over its diagonal (any rows; dominance's margin, .dominance.MARGIN)
 STENCIL = 10.0          # ... in rows of at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
+WHOLE_NNZ = 1 << 21     # stored entries of a rank's block up to which shifted rows' trial (the whole block) is made
 HALFWAY = 2.0           # ... and be below this times the first halfway
 
 
-def why_icc(mat, A, per_row, coll):
-    """Why ICC(0) of the whole matrix (of each rank's grown block on several ranks) serves ``mat`` (this rank's
-    rows ``A``, scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), or None: rows hold at most
-    :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT` of the diagonal on every rank
-    (:func:`holds`), the matrix is not singular (no null space attached, not every row sum vanishing) and every
-    rank's trial brings its residual below :data:`TRIAL_DROP` (:func:`trial_drop` on its :func:`window`).
-    Collective."""
-    if per_row > STENCIL:
-        return None
+def why_icc(mat, A, per_row, coll, bare=True):
+    """Why ICC(0) of the whole matrix (of each rank's block on several ranks) serves ``mat`` (this rank's rows ``A``,
+    scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), the test that new values still
+    call for it (:func:`shifted` or :func:`holds`) and whether the ranks' blocks are to be grown (anisotropy), or
+    (None, None, False). Shifted rows (any matrix): the median sampled
+    row's sum is at least :data:`SHIFT` of its diagonal on every rank. Strongly anisotropic ones (``bare`` matrices,
+    no coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least
+    :data:`WEIGHT` of the diagonal on every rank, and the matrix is not singular (no null space attached, not every
+    row sum vanishing). Either way every rank's trial then brings its residual below :data:`TRIAL_DROP`
+    (:func:`trial_drop`: on its whole block, unshifted, up to :data:`WHOLE_NNZ` stored entries for shifted rows; on
+    its :func:`window` for anisotropic ones). Collective."""
     start = mat.getOwnershipRange()[0]
-    weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
-    if not weight >= WEIGHT or mat.getNullSpace().handle or not coll.any(not _null_rows(A, start)):
-        return None
+    share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
+    if share >= SHIFT:
+        what, test, size = f"shifted rows (row sums {share:.2g} of the diagonal", shifted, None   # whole blocks
+    elif bare and per_row <= STENCIL:
+        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
+        if not weight >= WEIGHT or mat.getNullSpace().handle or not coll.any(not _null_rows(A, start)):
+            return None, None, False
+        what, test, size = (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", holds,
+                            TRIAL_ROWS)
+    else:
+        return None, None, False
     with diagonal_block(mat, A) as block:
-        rows = window(block)
-        small = rows.size < min(TRIAL_ROWS, block.shape[0]) // 2
-    drop = coll.max_array(np.array([np.inf if small else trial_drop(mat.getDiagonalBlock(), rows)]))[0]
+        rows = window(block, block.shape[0] if size is None else size)
+        skip = rows.size < min(size, block.shape[0]) // 2 if size else block.nnz > WHOLE_NNZ
+    drop = coll.max_array(np.array([np.inf if skip else trial_drop(mat.getDiagonalBlock(), rows, size is not None)]))[0]
     if not drop <= TRIAL_DROP:
-        return None
-    return (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal; ICC(0) took a trial residual "
-            f"to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space does not pay")
+        return None, None, False
+    return f"{what}; ICC(0) took a trial residual to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space does " \
+           "not pay", test, test is holds
 
 
 def holds(rows, start) -> bool:
@@ -65,17 +87,36 @@ def holds(rows, start) -> bool:
     return positive_weight(rows, start) >= WEIGHT
 
 
+def shifted(rows, start) -> bool:
+    """Whether new values ``rows`` (as for :func:`holds`) keep the row sums' share (:data:`SHIFT`) that chose
+    ICC(0)."""
+    return row_sum_share(rows, start) >= SHIFT
+
+
 def positive_weight(A, start=0, rows=SAMPLE_ROWS) -> float:
     """The median over about ``rows`` evenly spaced rows of a rank's CSR rows ``A`` (their diagonal in column
     ``start`` + row) of their positive off-diagonal entries' sum over |a_ii| (0 where the diagonal is 0)."""
+    return _sampled(A, start, rows, positive=True)
+
+
+def row_sum_share(A, start=0, rows=SAMPLE_ROWS) -> float:
+    """The median over about ``rows`` evenly spaced rows of a rank's CSR rows ``A`` (as for
+    :func:`positive_weight`) of their sum over |a_ii| (0 where the diagonal is 0): about 0 for a Laplacian (a
+    Dirichlet boundary's rows are few), the mass matrix's share for a time step's M + dt K."""
+    return _sampled(A, start, rows, positive=False)
+
+
+def _sampled(A, start, rows, positive) -> float:
+    """The median over about ``rows`` evenly spaced rows of ``A`` of their ``positive`` off-diagonal entries' sum
+    (else all their entries') over |a_ii|; inf where a rank has no rows (no say in the least over the ranks)."""
     n = A.shape[0]
     if n == 0:
-        return np.inf                                      # no rows: no say in the least over the ranks
-    picked = np.arange(0, n, max(1, n // rows))
+        return np.inf
+    picked = np.unique(np.random.default_rng(0).integers(0, n, min(n, rows)))   # no stride that a grid's side divides
     where, owner = row_entries(A.indptr, picked)
     values = A.data[where]
-    lift = (values > 0) & (A.indices[where] != picked[owner] + start)
-    total = np.bincount(owner[lift], values[lift], minlength=picked.size).astype(float)   # int where none lift
+    taken = (values > 0) & (A.indices[where] != picked[owner] + start) if positive else np.ones(values.size, bool)
+    total = np.bincount(owner[taken], values[taken], minlength=picked.size).astype(float)   # int where none is
     diag = np.abs(A.diagonal(k=start)[picked])
     return float(np.median(np.divide(total, diag, out=np.zeros_like(total), where=diag > 0)))
 
@@ -90,22 +131,33 @@ def window(A, size=TRIAL_ROWS) -> np.ndarray:
     """The rows of a graph ball of at most ``size`` rows about the first coupled row from the middle of a square CSR
     ``A``, sorted: a patch of the domain in the matrix's own numbering (fewer rows where that row's component is
     smaller; :func:`why_icc` then takes no trial). The leading rows would not do: in a 1024^2 grid they are a strip
-    64 rows high, on which ICC(0) converged fast whatever the anisotropy."""
+    64 rows high, on which ICC(0) converged fast whatever the anisotropy. Grown level by level, so its cost is the
+    ball's, not the matrix's (a search of the whole graph took 8 ms at 64 000 rows of tetrahedra)."""
     n = A.shape[0]
     if n <= size:
         return np.arange(n)
     coupled = np.flatnonzero(np.diff(A.indptr)[n // 2:] > 1)
-    seed = n // 2 + int(coupled[0]) if coupled.size else n // 2
-    order = breadth_first_order(A, seed, directed=True, return_predecessors=False)
-    return np.sort(order[:size])
+    seen = np.zeros(n, dtype=bool)
+    level = np.array([n // 2 + int(coupled[0]) if coupled.size else n // 2])
+    levels, count = [], 0
+    while level.size and count < size:
+        seen[level] = True
+        levels.append(level)
+        count += level.size
+        where, _ = row_entries(A.indptr, level)
+        level = np.unique(A.indices[where])
+        level = level[~seen[level]]
+    return np.sort(np.concatenate(levels)[:size])
 
 
-def trial_drop(mat, rows) -> float:
+def trial_drop(mat, rows, shift=True) -> float:
     """The residual after :data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side in
     [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of a
     sequential ``mat`` (a rank's diagonal block): iterations whose cost does not grow with N (at 1M rows the whole
     matrix's trial took 0.3-0.7 s, and its residual grew on every kind of row); inf where PETSc's factor failed, CG
-    broke down or a residual is not finite."""
+    broke down or a residual is not finite. ``shift``: ICC(0)'s pivots kept positive by PETSc's shift, else not
+    (a whole block's trial: a pivot that is not positive calls for the shift that took a heat step on P1 tetrahedra
+    at 262 144 rows from 15 to 299 iterations and repeats the factor, so the trial fails at once)."""
     n = rows.size
     index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF) if n < mat.getSize()[0] else None
     part = mat if index is None else mat.createSubMatrix(index, index)
@@ -118,7 +170,8 @@ def trial_drop(mat, rows) -> float:
         pc = ksp.getPC()
         pc.setType("icc")
         pc.setFactorOrdering("natural")
-        pc.setFactorShift(shift_type=PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE)
+        pc.setFactorShift(shift_type=PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE if shift else
+                          PETSc.Mat.FactorShiftType.NONE)
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.setTolerances(rtol=0.0, atol=0.0, max_it=TRIAL_ITS)
         ksp.setConvergenceHistory(length=TRIAL_ITS + 1)
