@@ -77,10 +77,16 @@ def alone(A, b):
     return {"A": (A, b)}
 
 
-if __name__ == "__main__":
+def main(default_cases):
+    """The table of the command line's N and cases (default ``default_cases``) for the methods named in $METHODS
+    (default all four)."""
     if os.environ.get("METHODS"):
         keep = os.environ["METHODS"].split(",")
         for name in [m for m in units.METHODS if m not in keep]:
             del units.METHODS[name]
+    units.table(alone, default_cases)
+
+
+if __name__ == "__main__":
     units.CASES.update({name: with_rhs(make) for name, make in EXTRA.items()})
-    units.table(alone, ["aniso_e0.01_a30", "aniso_e0.001_a45", *(c for c in EXTRA if c not in NOT_RUN_BY_DEFAULT)])
+    main(["aniso_e0.01_a30", "aniso_e0.001_a45", *(c for c in EXTRA if c not in NOT_RUN_BY_DEFAULT)])
