@@ -107,8 +107,9 @@ class TwoLevel:
         every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
         (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi', grown for anisotropy,
-        'asm') where the rows are diagonally dominant (:meth:`_dominant`) or, bare, the graph is no mesh
-        (:meth:`_no_mesh`) or the rows shifted or strongly anisotropic (:meth:`_incomplete`), :attr:`why` saying so."""
+        'asm') where the rows are diagonally dominant (:meth:`_dominant`), or, bare, the graph is no mesh
+        (:meth:`_no_mesh`) or the rows strongly anisotropic, or the rows shifted (:meth:`_incomplete`), :attr:`why`
+        saying so."""
         from .twolevel import sizing
 
         self.why, self.holds = None, None

@@ -438,20 +438,37 @@ def test_a_heat_step_with_shifted_rows_gets_icc_of_the_whole_matrix(tmp_path):
     ctx = ksp.getPC().getPythonContext()
     assert reason > 0 and relres <= 1e-8 and its <= 40, (its, relres)
     assert lines(ksp).startswith("whole matrix: ICC(0)") and "shifted rows" in lines(ksp), lines(ksp)
-    K, _ = meshes.p1_laplacian(3, 12000)
-    assert np.array_equal(K.indptr, A.indptr) and np.array_equal(K.indices, A.indices)
-    mat.setValuesCSR(K.indptr, K.indices, K.data)
-    mat.assemble()
-    reason, _, relres, _, _ = solve(K, b, mat=mat, ksp=ksp)
-    assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
+    for values, count, text in ((meshes.p1_heat(3, 12000, 10.0, frame=1)[0], 1, "whole matrix: ICC(0)"),
+                                (meshes.p1_laplacian(3, 12000)[0], 2, "leaves: aggregation")):
+        assert np.array_equal(values.indptr, A.indptr) and np.array_equal(values.indices, A.indices)
+        mat.setValuesCSR(values.indptr, values.indices, values.data)     # a new step size keeps the analysis, the
+        mat.assemble()                                                   # stiffness alone loses the shift
+        reason, _, relres, _, _ = solve(values, b, mat=mat, ksp=ksp)
+        assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == count and text in lines(ksp), lines(ksp)
     long_step, _ = meshes.p1_heat(3, 12000, 1000.0)
     assert incomplete.row_sum_share(long_step) < incomplete.SHIFT
     reason, _, relres, ksp, _ = solve(long_step, b)
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+    aniso, r = CASES["aniso_e0.001_a45"](12000, 0)                  # anisotropic and shifted: the anisotropy's rule
+    shifted = (sp.csr_matrix(aniso) + 0.01 * sp.diags(aniso.diagonal())).tocsr()
+    assert incomplete.row_sum_share(shifted) >= incomplete.SHIFT
+    reason, _, relres, ksp, _ = solve(shifted, r)
+    assert reason > 0 and relres <= 1e-8 and "strongly anisotropic rows" in lines(ksp), lines(ksp)
     proc = _on_two_ranks(A, tmp_path / "heat.petsc")
     assert proc.returncode == 0 and "shifted rows" in proc.stdout, proc.stdout + proc.stderr
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
+
+
+def test_shifted_rows_take_no_trial_past_the_whole_blocks_size(monkeypatch):
+    """The shifted rows' trial factors each rank's whole block: past incomplete.WHOLE_NNZ stored entries it is not
+    made, and the two-level method serves (the heat step above, the limit set below its entries)."""
+    from petsc_htp.twolevel import incomplete
+
+    A, b = meshes.p1_heat(3, 12000, 10.0)
+    monkeypatch.setattr(incomplete, "WHOLE_NNZ", A.nnz - 1)
+    reason, _, relres, ksp, _ = solve(A, b)
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp), lines(ksp)
 
 
 def test_the_icc_trial_window_is_a_ball_of_the_graph():

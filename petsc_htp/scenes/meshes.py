@@ -87,7 +87,7 @@ def p1_laplacian(dim, n, seed=0, frame=0) -> tuple:
 def p1_heat(dim, n, steps=10.0, seed=0, frame=0) -> tuple:
     """(A, b): one backward-Euler step of the heat equation on :func:`p1_laplacian`'s mesh, A = M + dt K with the
     time step dt = ``steps`` h^2 (h the lattice spacing): a mass matrix's positive couplings beside the stiffness's
-    negative ones, rows summing to the mass. ``frame`` > 0 scales dt by e^N(0, 1/4) (a step size control's new
+    negative ones, rows summing to the mass. ``frame`` > 0 scales dt by e^N(0, 0.25^2) (a step size control's new
     step: the pattern stays); b standard normal."""
     points, simplices, inner, h = _mesh(dim, n, seed)
     dt = steps * h * h * (np.exp(np.random.default_rng([seed, frame]).normal(0.0, 0.25)) if frame else 1.0)

@@ -38,10 +38,10 @@ BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 
 def factor_options(kind: str, ranks: int) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
-    matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (a graph that is
-    no mesh on several ranks): ICC(0) of each rank's diagonal block (:data:`BLOCKS`), and for 'asm' (strongly
-    anisotropic rows on several ranks) of each rank's block grown by :data:`OVERLAP` layers, additive and symmetric
-    (:data:`GROWN`)."""
+    matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
+    dominant or shifted rows, a graph that is no mesh): ICC(0) of each rank's diagonal block (:data:`BLOCKS`), and
+    for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers, additive and
+    symmetric (:data:`GROWN`)."""
     if kind in BLOCKED:
         return dict(BLOCKED[kind])
     opts = FACTORS[kind]

@@ -6,10 +6,10 @@ the stiffness's negative ones, so it is not diagonally dominant (:mod:`.dominanc
 and ICC(0) of the whole matrix converges in a number of iterations bounded by the time step. Where the median
 sampled row sums to :data:`SHIFT` of its diagonal or more (a Laplacian's rows sum to 0; P1 tetrahedra at dt = 10 h^2
 0.013, at 1000 h^2 0.00013), ICC(0) of each rank's whole block is tried, without PETSc's shift, up to
-:data:`WHOLE_NNZ` stored entries: at 262 144 rows of tetrahedra a pivot that is not positive called for the shift,
-which took ICC(0) from 15 to 299 iterations, and no ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows
-HTPPC then took 155 and 282 ms (15 and 39 iterations) at dt = h^2 and 10 h^2 against its two-level method's 409
-and 408 (``results/shifted-20261127``).
+:data:`WHOLE_NNZ` stored entries: at 262 144 rows of tetrahedra (dt = 10 h^2) one pivot that is not positive called
+for the shift, under which ICC(0) took 299 iterations (the two-level method 42, ICC(0) at 64 000 rows 39), and no
+graph ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows HTPPC then took 166 and 277 ms (15 and 39
+iterations) at dt = h^2 and 10 h^2 against its two-level method's 451 and 491 (``results/shifted-20261127``).
 
 Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
 at about 22-68 degrees, FE within about 32 degrees of the axes) holds positive off-diagonal couplings that weigh
@@ -39,46 +39,60 @@ from .nullspace import vanishing
 from ..petscmat import diagonal_block
 
 WEIGHT = 0.15           # the median sampled row's positive off-diagonal sum over its diagonal from which to try ICC(0)
-SHIFT = 0.0025          # ... or its row sum over its diagonal (any rows; dominance's margin, .dominance.MARGIN)
 STENCIL = 10.0          # ... in rows of at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
+SHIFT = 0.0025          # the median sampled row's sum over its diagonal from which to try ICC(0) (dominance's margin)
+WHOLE_NNZ = 1 << 21     # ... where a rank's block holds at most this many stored entries (the trial takes it whole)
 TRIAL_ITS = 10          # CG iterations of the trial
-TRIAL_ROWS = 65536      # ... on at most this many rows
+TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
-WHOLE_NNZ = 1 << 21     # stored entries of a rank's block up to which shifted rows' trial (the whole block) is made
 HALFWAY = 2.0           # ... and be below this times the first halfway
 
 
 def why_icc(mat, A, per_row, coll, bare=True):
     """Why ICC(0) of the whole matrix (of each rank's block on several ranks) serves ``mat`` (this rank's rows ``A``,
     scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), the test that new values still
-    call for it (:func:`shifted` or :func:`holds`) and whether the ranks' blocks are to be grown (anisotropy), or
-    (None, None, False). Shifted rows (any matrix): the median sampled
-    row's sum is at least :data:`SHIFT` of its diagonal on every rank. Strongly anisotropic ones (``bare`` matrices,
-    no coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least
-    :data:`WEIGHT` of the diagonal on every rank, and the matrix is not singular (no null space attached, not every
-    row sum vanishing). Either way every rank's trial then brings its residual below :data:`TRIAL_DROP`
-    (:func:`trial_drop`: on its whole block, unshifted, up to :data:`WHOLE_NNZ` stored entries for shifted rows; on
-    its :func:`window` for anisotropic ones). Collective."""
+    call for it (:func:`holds` or :func:`shifted`) and whether the ranks' blocks are to be grown (anisotropy), or
+    (None, None, False); never with a null space attached. Strongly anisotropic rows first (``bare`` matrices, no
+    coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT`
+    of the diagonal on every rank, not every row sum vanishes, and every rank's trial on its :func:`window` brings
+    its residual below :data:`TRIAL_DROP`. Else shifted rows (any matrix): the median sampled row sums to at least
+    :data:`SHIFT` of its diagonal on every rank, and every rank's trial on its whole block, unshifted, where it
+    holds at most :data:`WHOLE_NNZ` entries, brings the residual below :data:`TRIAL_DROP`. Collective."""
+    if mat.getNullSpace().handle:
+        return None, None, False
     start = mat.getOwnershipRange()[0]
+    if bare and per_row <= STENCIL:
+        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
+        if weight >= WEIGHT and coll.any(not _null_rows(A, start)):
+            drop = _trial(mat, A, coll, TRIAL_ROWS)
+            if drop <= TRIAL_DROP:
+                return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
+                    holds, True
     share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
     if share >= SHIFT:
-        what, test, size = f"shifted rows (row sums {share:.2g} of the diagonal", shifted, None   # whole blocks
-    elif bare and per_row <= STENCIL:
-        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
-        if not weight >= WEIGHT or mat.getNullSpace().handle or not coll.any(not _null_rows(A, start)):
-            return None, None, False
-        what, test, size = (f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", holds,
-                            TRIAL_ROWS)
-    else:
-        return None, None, False
+        drop = _trial(mat, A, coll, None)
+        if drop <= TRIAL_DROP:
+            return _why(f"shifted rows (row sums {share:.2g} of the diagonal", drop), shifted, False
+    return None, None, False
+
+
+def _why(what, drop) -> str:
+    """-ksp_view's reason for ICC(0): ``what`` the rows are, then the trial's ``drop``."""
+    return f"{what}; ICC(0) took a trial residual to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space " \
+           "does not pay"
+
+
+def _trial(mat, A, coll, size):
+    """The largest over the ranks of :func:`trial_drop`: on a :func:`window` of ``size`` rows of each rank's block,
+    PETSc's shift keeping the pivots positive, or (``size`` None) on the whole block, unshifted, where it holds at most
+    :data:`WHOLE_NNZ` entries; inf where a rank's window is less than half its size or its block larger."""
     with diagonal_block(mat, A) as block:
-        rows = window(block, block.shape[0] if size is None else size)
-        skip = rows.size < min(size, block.shape[0]) // 2 if size else block.nnz > WHOLE_NNZ
-    drop = coll.max_array(np.array([np.inf if skip else trial_drop(mat.getDiagonalBlock(), rows, size is not None)]))[0]
-    if not drop <= TRIAL_DROP:
-        return None, None, False
-    return f"{what}; ICC(0) took a trial residual to {drop:.1e} in {TRIAL_ITS} CG iterations): a coarse space does " \
-           "not pay", test, test is holds
+        if size is None:
+            rows, skip = np.arange(block.shape[0]), block.nnz > WHOLE_NNZ
+        else:
+            rows = window(block, size)
+            skip = rows.size < min(size, block.shape[0]) // 2
+    return coll.max_array(np.array([np.inf if skip else trial_drop(mat.getDiagonalBlock(), rows, size is not None)]))[0]
 
 
 def holds(rows, start) -> bool:
@@ -89,30 +103,32 @@ def holds(rows, start) -> bool:
 
 def shifted(rows, start) -> bool:
     """Whether new values ``rows`` (as for :func:`holds`) keep the row sums' share (:data:`SHIFT`) that chose
-    ICC(0)."""
+    ICC(0) (the trial is not made again: a longer time step that keeps the share keeps ICC(0), whose shift then
+    keeps its pivots positive)."""
     return row_sum_share(rows, start) >= SHIFT
 
 
 def positive_weight(A, start=0, rows=SAMPLE_ROWS) -> float:
-    """The median over about ``rows`` evenly spaced rows of a rank's CSR rows ``A`` (their diagonal in column
+    """The median over ``rows`` sampled rows (:func:`_sampled`) of a rank's CSR rows ``A`` (their diagonal in column
     ``start`` + row) of their positive off-diagonal entries' sum over |a_ii| (0 where the diagonal is 0)."""
     return _sampled(A, start, rows, positive=True)
 
 
 def row_sum_share(A, start=0, rows=SAMPLE_ROWS) -> float:
-    """The median over about ``rows`` evenly spaced rows of a rank's CSR rows ``A`` (as for
-    :func:`positive_weight`) of their sum over |a_ii| (0 where the diagonal is 0): about 0 for a Laplacian (a
-    Dirichlet boundary's rows are few), the mass matrix's share for a time step's M + dt K."""
+    """The median over ``rows`` sampled rows of a rank's CSR rows ``A`` (as for :func:`positive_weight`) of their sum
+    over |a_ii| (0 where the diagonal is 0): about 0 for a Laplacian (a Dirichlet boundary's rows are few), the mass
+    matrix's share for a time step's M + dt K."""
     return _sampled(A, start, rows, positive=False)
 
 
 def _sampled(A, start, rows, positive) -> float:
-    """The median over about ``rows`` evenly spaced rows of ``A`` of their ``positive`` off-diagonal entries' sum
-    (else all their entries') over |a_ii|; inf where a rank has no rows (no say in the least over the ranks)."""
+    """The median over ``rows`` rows of ``A`` drawn at random (a fixed draw; a stride that a grid's side divides
+    would sample one column), all where it has fewer, of their ``positive`` off-diagonal entries' sum (else all their
+    entries') over |a_ii|; inf where a rank has no rows (no say in the least over the ranks)."""
     n = A.shape[0]
     if n == 0:
         return np.inf
-    picked = np.unique(np.random.default_rng(0).integers(0, n, min(n, rows)))   # no stride that a grid's side divides
+    picked = np.arange(n) if n <= rows else np.sort(np.random.default_rng(0).choice(n, rows, replace=False))
     where, owner = row_entries(A.indptr, picked)
     values = A.data[where]
     taken = (values > 0) & (A.indices[where] != picked[owner] + start) if positive else np.ones(values.size, bool)
@@ -155,9 +171,10 @@ def trial_drop(mat, rows, shift=True) -> float:
     [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of a
     sequential ``mat`` (a rank's diagonal block): iterations whose cost does not grow with N (at 1M rows the whole
     matrix's trial took 0.3-0.7 s, and its residual grew on every kind of row); inf where PETSc's factor failed, CG
-    broke down or a residual is not finite. ``shift``: ICC(0)'s pivots kept positive by PETSc's shift, else not
-    (a whole block's trial: a pivot that is not positive calls for the shift that took a heat step on P1 tetrahedra
-    at 262 144 rows from 15 to 299 iterations and repeats the factor, so the trial fails at once)."""
+    broke down or a residual is not finite. ``shift``: ICC(0)'s pivots kept positive by PETSc's shift, else not, and
+    a factor with a pivot that is not positive (its inertia) fails at once, with no iteration: such a pivot calls for
+    the shift, under which a heat step on P1 tetrahedra at 262 144 rows took 299 iterations, and the shift's tries
+    repeat the factor."""
     n = rows.size
     index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF) if n < mat.getSize()[0] else None
     part = mat if index is None else mat.createSubMatrix(index, index)
@@ -176,6 +193,10 @@ def trial_drop(mat, rows, shift=True) -> float:
         ksp.setTolerances(rtol=0.0, atol=0.0, max_it=TRIAL_ITS)
         ksp.setConvergenceHistory(length=TRIAL_ITS + 1)
         ksp.setConvergenceTest(_halfway)
+        if not shift:
+            ksp.setUp()
+            if pc.getFailedReason() != PETSc.PC.FailedReason.NOERROR or pc.getFactorMatrix().getInertia()[0]:
+                return np.inf
         b.setArray(np.random.default_rng(0).random(n))
         x.set(0.0)
         ksp.solve(b, x)
