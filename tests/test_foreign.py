@@ -460,6 +460,28 @@ def test_a_heat_step_with_shifted_rows_gets_icc_of_the_whole_matrix(tmp_path):
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
 
 
+def test_rows_split_at_random_over_two_ranks_get_paired_leaves(tmp_path):
+    """Rows in a random order split by PETSc over two ranks (half the couplings join the ranks): the two-level
+    method pairs its aggregates even where rich rows with positive couplings (rotated anisotropy) would take standard
+    leaves and the eig space, whose coarse operator then coupled each piece to leaves all over the other rank (310 s
+    at 65 536 rows), and the anisotropy's ICC(0) is not tried on such blocks."""
+    A, _ = CASES["aniso_e0.001_a45"](12000, 0)
+    p = np.random.default_rng(0).permutation(A.shape[0])
+    shuffled = sp.csr_matrix(A)[p][:, p].tocsr()
+    mat = PETSc.Mat().createAIJ(shuffled.shape, csr=(shuffled.indptr.astype(PETSc.IntType),
+                                                     shuffled.indices.astype(PETSc.IntType), shuffled.data),
+                                comm=PETSc.COMM_SELF)
+    viewer = PETSc.Viewer().createBinary(str(tmp_path / "shuffled.petsc"), "w", comm=PETSc.COMM_SELF)
+    mat.view(viewer)
+    viewer.destroy()
+    for extra in ((), ("-htp_direct_max", "0")):       # as it comes: no ICC(0) either, whose trial on the blocks
+        proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(tmp_path / "shuffled.petsc"), *HTPPC_FLAGS,
+                       *extra)                          # passed (618 iterations at 65 536 rows, 269 two-level)
+        assert proc.returncode == 0 and "second pass pairs" in proc.stdout, proc.stdout + proc.stderr
+        relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+        assert "coarse: const" in proc.stdout and relres <= 1.01e-8
+
+
 def test_shifted_rows_take_no_trial_past_the_whole_blocks_size(monkeypatch):
     """The shifted rows' trial factors each rank's whole block: past incomplete.WHOLE_NNZ stored entries it is not
     made, and the two-level method serves (the heat step above, the limit set below its entries)."""

@@ -70,6 +70,7 @@ REDUNDANT_MAX = 8000                # a rank without rows: matrix rows up to whi
 RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
 EXPANDER_GROWTH = 4.0               # ball growth exponent (graphshape) from which a graph is no mesh: ICC(0), any size
 POSITIVE_MAX = 0.05                 # 2-D: share of positive off-diagonal couplings up to which rich rows are paired
+SPLIT_PAIRED = 0.25                 # ... or share of couplings joining two ranks from which they are (see aggregation)
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
@@ -105,7 +106,7 @@ def coarse_space(dim, near, paired=False) -> str:
     return "const" if near or paired else COARSE[dim]
 
 
-def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False) -> str:
+def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False, split=0.0) -> str:
     """The kind of the aggregation passes after the first (:mod:`.aggregation`): 'pairs' in 2-D where rows hold at
     most :data:`RICH_ROW` stored entries (5-point stencils), at most :data:`POSITIVE_MAX` of the sampled
     off-diagonal couplings are ``positive`` (a mesh Laplacian's rows) or the operator brings ``near`` > 0 near null
@@ -125,10 +126,15 @@ def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False)
     against 40-61). In 3-D any bare matrix's aggregates are paired, rich rows too:
     with two coarse V-cycles (:func:`coarse_exact`) the foreign study's DMDA case took 25-29 against 33-41 CG
     iterations from 32^3 to 128^3 and 0.88-1.05 times the time (10.5 against 11.9 s at 128^3), and the P1 tets at
-    64 000 rows 40 against 47 iterations and 461 against 468-500 ms (results/foreign-20261126c and -d, README)."""
+    64 000 rows 40 against 47 iterations and 461 against 468-500 ms (results/foreign-20261126c and -d, README).
+    Where :data:`SPLIT_PAIRED` or more of the couplings join rows of two ranks (``split``: rows in a random order
+    split by PETSc, a matrix file read as it is), each rank's block falls apart, standard leaves hold many pieces
+    and the coarse operator couples each to leaves all over the other ranks: on 2 ranks at 65 536 rows the 45-degree
+    anisotropy numbered at random took 310 s (standard leaves, eig space, 200 iterations) against 0.8 s paired (269
+    iterations; GAMG 0.6 s, 90), P1 triangles with the eig space 7.8 s against 0.26."""
     if coarse not in ("auto", "const") or (dim == 3 and attached):
         return "standard"
-    paired = dim == 3 or near or per_row <= RICH_ROW or positive <= POSITIVE_MAX
+    paired = dim == 3 or near or per_row <= RICH_ROW or positive <= POSITIVE_MAX or split >= SPLIT_PAIRED
     return "pairs" if paired else "standard"
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from . import blocksize, coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values
+from ..ranksplit import crossing
 from .aggregation import THETA, sampled_shares, threshold
 from .csr import compact, row_entries
 from .graphshape import graph_shape, hub_rows
@@ -51,11 +52,10 @@ class Structure:
 
     def __init__(self, mat, rows, coords, cfg, net_rank=None):
         self.coll = coll = Collective(mat.getComm())
-        start = mat.getOwnershipRange()[0]
         self.N = mat.getSize()[0]
         with diagonal_block(mat, rows) as block:
             self._leaves(mat, rows, block, coords, cfg)
-        self.lay = layout(rows, start, self.leaves)
+        self.lay = layout(rows, mat.getOwnershipRange()[0], self.leaves)
         self._components(mat, rows)
         self._columns(net_rank, rows)
         self._weak = None
@@ -80,6 +80,7 @@ class Structure:
         self.linear, self.dense = sizing.chain(growth, self.per_row), coll.any(hubs)       # dense: a dense row
         positive = 1.0 if self.shape is None or np.isnan(self.shape.positive) else self.shape.positive
         self.positive = float(coll.max_array(np.array([positive]))[0])
+        self.split = (crossing(mat, rows, coll, rows.data != 0) or (1, 0.0))[1]    # couplings that join two ranks
         self.cfg = cfg = self.resolved(cfg, coords is None)
         theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
                  else threshold(sampled_shares(block)[1]))              # coordinates: aggregation leaves if asked
@@ -108,7 +109,7 @@ class Structure:
         (no coordinates: 'auto' ordering makes aggregation leaves) and its near null vectors (:mod:`.sizing`)."""
         second = (cfg.aggregation if cfg.aggregation != "auto"
                   else sizing.aggregation(self.dim, self.fixed, self.per_row, cfg.coarse, self.positive,
-                                          self.attached))
+                                          self.attached, self.split))
         paired = second == "pairs" and (cfg.ordering == "aggregation" or (cfg.ordering == "auto" and bare))
         coarse = sizing.coarse_space(self.dim, self.fixed, paired) if cfg.coarse == "auto" else cfg.coarse
         return dataclasses.replace(cfg, leaf=cfg.leaf or sizing.leaf_size(self.dim, self.N), coarse=coarse,
