@@ -180,6 +180,9 @@ def test_graph_shape_counts_weak_and_positive_couplings():
     assert "0% positive" in mesh.describe()
     assert sizing.aggregation(2, 0, 7.0, "auto", mesh.positive) == "pairs"
     assert sizing.aggregation(2, 0, 9.0, "auto", rotated.positive) == "standard"
+    assert sizing.aggregation(2, 0, 9.0, "auto", rotated.positive, split=0.5) == "pairs"     # blocks fall apart
+    assert sizing.aggregation(2, 0, 9.0, "auto", rotated.positive, split=0.2) == "standard"
+    assert sizing.aggregation(2, 0, 9.0, "eig", rotated.positive, split=0.5) == "standard"   # the user's space
 
 
 def _lap27(m):
@@ -479,7 +482,8 @@ def test_rows_split_at_random_over_two_ranks_get_paired_leaves(tmp_path):
                        *extra)                          # passed (618 iterations at 65 536 rows, 269 two-level)
         assert proc.returncode == 0 and "second pass pairs" in proc.stdout, proc.stdout + proc.stderr
         relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
-        assert "coarse: const" in proc.stdout and relres <= 1.01e-8
+        its = int(proc.stdout.split("iterations:")[1].split()[0])
+        assert "coarse: const" in proc.stdout and relres <= 1.01e-8 and its <= 200, its
 
 
 def test_shifted_rows_take_no_trial_past_the_whole_blocks_size(monkeypatch):

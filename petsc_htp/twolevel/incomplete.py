@@ -19,9 +19,11 @@ method took 40-153 CG iterations at 65 536 rows, at 1M rows 41 (eps 0.01, 30 deg
 converging (eps 0.001, 45 degrees); ICC(0) of the whole matrix, whose 9-point pattern holds the strong couplings,
 takes 14-37 at 65 536 rows and 70-100 at 1M (``results/rotated-20261127``). The same weight also marks rows where
 ICC(0) loses as N grows (eps 0.1: 70-95 ICC iterations at 65 536 rows against the two-level method's 24-25), and a
-random numbering takes ICC(0) to 600 iterations: a trial tells them apart. :data:`TRIAL_ITS` CG iterations with ICC(0)
-from zero on a fixed random right-hand side, on a graph ball of at most :data:`TRIAL_ROWS` rows of each rank's block
-in the matrix's own numbering, must bring the residual below :data:`TRIAL_DROP` (0.02-0.06 on the strongly
+random numbering takes ICC(0) to 600 iterations: a trial tells them apart (on one rank; on several, rows split at
+random leave each rank a sparser block on which the trial passes, so none is made there: :func:`_kept`).
+:data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side, on a graph ball of at most
+:data:`TRIAL_ROWS` rows of each rank's block in the matrix's own numbering, must bring the residual below
+:data:`TRIAL_DROP` (0.02-0.06 on the strongly
 anisotropic rows at 65 536 rows, 0.13 with penalty rows, 0.16 for FE eps 0.01 at 15 degrees at 1M rows, where ICC(0)
 took 3.3 s against the two-level method's 7.9; 0.95-7 on the others at 65 536 and 1M rows). Only rows of at most
 :data:`STENCIL` stored entries whose positive couplings weigh :data:`WEIGHT` pay for the trial (none of the foreign
@@ -82,8 +84,9 @@ def why_icc(mat, A, per_row, coll, bare=True):
 def _kept(mat, A, coll) -> bool:
     """Whether the ranks' blocks keep the couplings (less than :data:`.sizing.SPLIT_PAIRED` of them join two ranks),
     so that a trial on each block speaks for the whole matrix: the 45-degree anisotropy numbered at random passed it
-    on 2 ranks (each block a sparser graph) and took 618 ICC(0) iterations, 1.9 s, against the two-level method's
-    269, 0.9 s (``results/rotated-20261127/split.txt``). Collective."""
+    on 2 ranks at 65 536 rows (each block a sparser graph) and took 618 ICC(0) iterations, 1.6 s
+    (``results/rotated-20261127/split-before.txt``), where the two-level method on paired leaves takes 269, 0.8 s
+    (``split.txt``). Collective."""
     cut = crossing(mat, A, coll, A.data != 0)
     return cut is None or cut[1] < SPLIT_PAIRED
 

@@ -5,8 +5,8 @@ Chosen by time, one defaults sweep per dimension (``petsc-htp bench --studies de
 
 - A bare matrix (no coordinates): aggregation leaves (:mod:`petsc_htp.twolevel.aggregation`), whose size follows
   the graph, solved exactly; the dimension is what the graph shows (:mod:`petsc_htp.twolevel.graphshape`). In
-  2-D with rows as sparse as a 5-point stencil's, the first pass's aggregates are paired and take the const space
-  (:func:`aggregation`).
+  2-D with rows as sparse as a 5-point stencil's, few positive couplings or rows split at random over the ranks, the
+  first pass's aggregates are paired and take the const space (:func:`aggregation`).
 - 2-D: 32-row leaves, solved exactly (Cholesky), with the eig coarse space (r = 2).
 - 3-D: an exact leaf factor fills in (separators grow as L^(2/3)), and the eig vectors cost more than
   they save: 64-row leaves solved by ICC(0), with the const coarse space (one vector per piece). The
@@ -70,7 +70,8 @@ REDUNDANT_MAX = 8000                # a rank without rows: matrix rows up to whi
 RICH_ROW = 5.5                      # stored nonzeros per row above which ICC(0) replaces the small matrix's Cholesky
 EXPANDER_GROWTH = 4.0               # ball growth exponent (graphshape) from which a graph is no mesh: ICC(0), any size
 POSITIVE_MAX = 0.05                 # 2-D: share of positive off-diagonal couplings up to which rich rows are paired
-SPLIT_PAIRED = 0.25                 # ... or share of couplings joining two ranks from which they are (see aggregation)
+SPLIT_PAIRED = 0.25                 # ... or share of couplings joining two ranks from which they are (a block falls
+# apart there: .spread measures the whole graph's growth, .incomplete tries no ICC(0) for anisotropy)
 LEAF = {2: 32, 3: 64}
 COARSE = {2: "eig", 3: "const"}
 EXACT_FACTOR = {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"}
@@ -101,8 +102,8 @@ CHAIN_ROW = 3.5                             # ... whose rows hold at most this m
 def coarse_space(dim, near, paired=False) -> str:
     """The coarse space by the problem: the piece constants alone once the operator brings ``near`` > 0 near null
     vectors of its own (block size, attached near null space: 2-D elasticity at 24k-180k rows, 3-4 more CG
-    iterations and 25-45 % less setup than with the eig vector) or on leaves of ``paired`` aggregates of a sparse
-    graph (see :func:`aggregation`), else :data:`COARSE` by dimension."""
+    iterations and 25-45 % less setup than with the eig vector) or on leaves of ``paired`` aggregates (see
+    :func:`aggregation`), else :data:`COARSE` by dimension."""
     return "const" if near or paired else COARSE[dim]
 
 
@@ -131,7 +132,9 @@ def aggregation(dim, near, per_row, coarse="auto", positive=1.0, attached=False,
     split by PETSc, a matrix file read as it is), each rank's block falls apart, standard leaves hold many pieces
     and the coarse operator couples each to leaves all over the other ranks: on 2 ranks at 65 536 rows the 45-degree
     anisotropy numbered at random took 310 s (standard leaves, eig space, 200 iterations) against 0.8 s paired (269
-    iterations; GAMG 0.6 s, 90), P1 triangles with the eig space 7.8 s against 0.26."""
+    iterations; GAMG 0.6 s, 90; ``results/rotated-20261127/split-before.txt`` and ``split.txt``). Only for leaves
+    whose aggregation is chosen here: bare matrices, the coarse space auto or const (one chosen by the user keeps
+    standard leaves, slow on such a split), not 3-D with a near null space attached."""
     if coarse not in ("auto", "const") or (dim == 3 and attached):
         return "standard"
     paired = dim == 3 or near or per_row <= RICH_ROW or positive <= POSITIVE_MAX or split >= SPLIT_PAIRED

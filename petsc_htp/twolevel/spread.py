@@ -16,8 +16,9 @@ import numpy as np
 
 from .csr import row_entries
 from .graphshape import RADIUS, hub_rows
+from .sizing import SPLIT_PAIRED
 
-CROSSING = 0.25     # share of off-diagonal couplings between ranks from which the whole graph's growth is measured
+CROSSING = SPLIT_PAIRED  # share of off-diagonal couplings between ranks from which the whole graph's growth counts
 # (meshes in their program's order: 0.2 % on 2 ranks; rows at random over p ranks: 1 - 1/p)
 SAMPLES = 8         # seeds whose balls are grown
 
