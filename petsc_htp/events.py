@@ -12,7 +12,7 @@ import time
 from petsc4py import PETSc
 
 EVENTS = {"HTPSetup": "setup of the preconditioner (analysis when the pattern changed, then the numeric step)",
-          "HTPChoice": "which method serves the pattern (its graph, dominance, the anisotropy trial; once per pattern)",
+          "HTPChoice": "which method serves the pattern (its graph, dominance, the ICC(0) trial; once per pattern)",
           "HTPAnalysis": "leaves, index maps, components and every matrix's pattern (once per pattern)",
           "HTPLeafFactor": "numeric factorisation of the leaf blocks",
           "HTPCoarseSpace": "the coarse vectors of every leaf",
