@@ -1,7 +1,7 @@
 """The matrices of the ``foreign`` study: families other programs hand over, sized to about N unknowns.
 
 Each case is ``make(n, frame) -> (A, b)``: frame 0 is the single solve; later frames keep the pattern and change
-the values (new coefficients, a turned anisotropy), except the free surface, whose liquid moves, so each frame
+the values (new coefficients, a turned anisotropy, a heat step's new time step), except the free surface, whose liquid moves, so each frame
 has a pattern of its own. PyAMG's shipped examples have their own size and no frames.
 """
 from __future__ import annotations
@@ -30,6 +30,7 @@ CASES = {
     "fem_hex": lambda n, k: meshes.q1_laplacian(n, k),
     "lognormal": lambda n, k: foreign.lognormal(_side(n, 2), 1e10, k),
     "neumann": lambda n, k: foreign.neumann(_side(n, 2), 1e3, k),
+    "heat_tet": lambda n, k: meshes.p1_heat(3, n, 10.0, 0, k),
 }
 PATTERN_CHANGES = ("free_surface",)
 
