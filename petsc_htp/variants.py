@@ -108,7 +108,7 @@ class TwoLevel:
         or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
         (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi', grown for anisotropy,
         'asm') where the rows are diagonally dominant (:meth:`_dominant`), or, bare, the graph is no mesh
-        (:meth:`_no_mesh`) or the rows strongly anisotropic, or the rows shifted (:meth:`_incomplete`), :attr:`why`
+        (:meth:`_no_mesh`) or the rows strongly anisotropic, wide or shifted (:meth:`_incomplete`), :attr:`why`
         saying so."""
         from .twolevel import sizing
 
@@ -170,8 +170,8 @@ class TwoLevel:
 
     def _incomplete(self, mat, A, coll, per_row, bare):
         """'icc' (on several ranks 'bjacobi', or 'asm' with each rank's block grown for anisotropy) where the rows are
-        shifted or, ``bare``, strongly anisotropic and a trial confirms it (:func:`.twolevel.incomplete.why_icc`), else
-        None (collective)."""
+        shifted or, ``bare``, strongly anisotropic or wide and a trial confirms it
+        (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
         from .twolevel import incomplete
 
         self.why, self.holds, grown = incomplete.why_icc(mat, A, per_row, coll, bare)

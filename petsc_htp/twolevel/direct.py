@@ -67,7 +67,7 @@ class DirectPC:
     holds : callable, optional
         (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal dominance,
         :func:`.dominance.holds`; their row sums, :func:`.incomplete.shifted`; their anisotropy,
-        :func:`.incomplete.holds`): values that lose it call for a new analysis. These choices were made for a
+        :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new analysis. These choices were made for a
         matrix that is not singular (dominant rows; rows that sum to a share of their diagonal; no null space and row
         sums that do not all vanish), so their factor skips the grounding test (0.3 s at 1M rows).
     """

@@ -1,5 +1,5 @@
-"""Where ICC(0) of the whole matrix beats a coarse space: shifted or strongly anisotropic rows that a short trial
-confirms.
+"""Where ICC(0) of the whole matrix beats a coarse space: shifted, wide or strongly anisotropic rows that a short
+trial confirms.
 
 Shifted rows: one implicit step of the heat equation, M + dt K, holds a mass matrix's positive couplings beside
 the stiffness's negative ones, so it is not diagonally dominant (:mod:`.dominance`) though its rows sum to the mass,
@@ -10,6 +10,12 @@ sampled row sums to :data:`SHIFT` of its diagonal or more (a Laplacian's rows su
 for the shift, under which ICC(0) took 299 iterations (the two-level method 42, ICC(0) at 64 000 rows 39), and no
 graph ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows HTPPC then took 166 and 277 ms (15 and 39
 iterations) at dt = h^2 and 10 h^2 against its two-level method's 451 and 491 (``results/shifted-20261127``).
+
+Wide rows: a 27-point stencil's or Q1 hexahedra's rows hold 27 stored entries, each coupling weak (1/26 to 1/16 of
+the diagonal) and none positive; ICC(0) of the whole matrix keeps most of such a matrix, and at 64 000 rows took 95-156
+ms (32-38 iterations) against the two-level method's 248-494, at 1M rows 4.4-5.2 s (74) against 4.7-6.0; rows of at
+least :data:`WIDE_ROW` entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) take
+the trial on a graph ball, up to :data:`WIDE_MAX` rows (coefficient jumps of 1e4 fail it: 0.86).
 
 Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
 at about 22-68 degrees, FE within about 32 degrees of the axes) holds positive off-diagonal couplings that weigh
@@ -46,6 +52,8 @@ WEIGHT = 0.15           # the median sampled row's positive off-diagonal sum ove
 STENCIL = 10.0          # ... in rows of at most this many stored entries (9-point stencils; not 2-D elasticity's 18)
 SHIFT = 0.0025          # the median sampled row's sum over its diagonal from which to try ICC(0) (dominance's margin)
 WHOLE_NNZ = 1 << 21     # ... where a rank's block holds at most this many stored entries (the trial takes it whole)
+WIDE_ROW = 20.0         # rows of at least this many stored entries (27-point stencils, Q1 hexahedra) try ICC(0) ...
+WIDE_MAX = 1 << 20      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 74 at 1M rows)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
@@ -59,8 +67,9 @@ def why_icc(mat, A, per_row, coll, bare=True):
     (None, None, False); never with a null space attached. Strongly anisotropic rows first (``bare`` matrices, no
     coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT`
     of the diagonal on every rank, not every row sum vanishes, the ranks' blocks keep the couplings (:func:`_kept`)
-    and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Else shifted rows
-    (any matrix): the median sampled row sums to at least :data:`SHIFT` of its diagonal on every rank, and every
+    and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Then wide rows (``bare``,
+    at most :data:`WIDE_MAX` rows): at least :data:`WIDE_ROW` entries a row, positive couplings below :data:`WEIGHT` on
+    every rank, and the same tests and trial (:func:`wide`). Else shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its diagonal on every rank, and every
     rank's trial on its whole block, unshifted, where it holds at most :data:`WHOLE_NNZ` entries, brings the
     residual below :data:`TRIAL_DROP`. Collective."""
     if mat.getNullSpace().handle:
@@ -73,6 +82,13 @@ def why_icc(mat, A, per_row, coll, bare=True):
             if drop <= TRIAL_DROP:
                 return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
                     holds, True
+    if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX:
+        weight = coll.max_array(np.array([positive_weight(A, start) if A.shape[0] else 0.0]))[0]
+        if weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
+            drop = _trial(mat, A, coll, TRIAL_ROWS)
+            if drop <= TRIAL_DROP:
+                return _why(f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the "
+                            "diagonal", drop), wide, False
     share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
     if share >= SHIFT:
         drop = _trial(mat, A, coll, None)
@@ -114,6 +130,12 @@ def holds(rows, start) -> bool:
     """Whether new values ``rows`` (a rank's, their diagonal in column ``start`` + row) keep the positive couplings'
     weight (:data:`WEIGHT`) that chose ICC(0)."""
     return positive_weight(rows, start) >= WEIGHT
+
+
+def wide(rows, start) -> bool:
+    """Whether new values ``rows`` (as for :func:`holds`) keep their positive couplings below the weight
+    (:data:`WEIGHT`) of wide rows that chose ICC(0) (a rank without rows keeps them)."""
+    return not rows.shape[0] or positive_weight(rows, start) < WEIGHT
 
 
 def shifted(rows, start) -> bool:
