@@ -64,7 +64,8 @@ class TwoLevel:
     def __init__(self, opts, prefix=""):
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
-        self.why, self.holds = None, None          # why the whole matrix is factored; what new values may lose
+        self.why, self.holds, self.factor = None, None, None   # why the whole matrix is factored, what new values
+        # may lose, and the ICC(0) trial's PC set up on the whole matrix (one rank; handed to the DirectPC)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -94,7 +95,7 @@ class TwoLevel:
         if kind is not None:
             from .twolevel.direct import DirectPC
 
-            setup = DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.holds)
+            setup, self.factor = DirectPC(mat, A, kind, self.prefix + "htp_", self.why, self.holds, self.factor), None
         else:
             from .twolevel.composed import TwoLevelPC
 
@@ -112,7 +113,7 @@ class TwoLevel:
         saying so."""
         from .twolevel import sizing
 
-        self.why, self.holds = None, None
+        self.why, self.holds, self.factor = None, None, None
         o = self.opts
         plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
                  o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
@@ -174,7 +175,7 @@ class TwoLevel:
         (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
         from .twolevel import incomplete
 
-        self.why, self.holds, grown = incomplete.why_icc(mat, A, per_row, coll, bare)
+        self.why, self.holds, grown, self.factor = incomplete.why_icc(mat, A, per_row, coll, bare)
         if self.why is None:
             return None
         return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"

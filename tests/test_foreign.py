@@ -477,6 +477,10 @@ def test_wide_rows_get_icc_of_the_whole_matrix(tmp_path):
     assert reason > 0 and relres <= 1e-8 and its <= 40, (its, relres)
     assert lines(ksp).startswith("whole matrix: ICC(0)") and "wide rows (25 stored entries a row" in lines(ksp), \
         lines(ksp)
+    reason, its1, relres, ksp1, _ = solve(A, b, htp_leaf_pc_factor_levels="1")   # the user's options win over the
+    assert reason > 0 and relres <= 1e-8 and its1 < its                         # trial's factor (ICC(0), applied as
+    held = [k.getPC().getPythonContext().setup.pc.getFactorMatrix().getInfo()["nz_used"] for k in (ksp, ksp1)]
+    assert held[0] == (A.nnz + A.shape[0]) // 2 < held[1], held                # it is where none is set)
     coo = A.tocoo()
     axis = sp.csr_matrix((np.where((coo.data == 0) & (coo.row != coo.col), 0.1, 0.0), (coo.row, coo.col)), A.shape)
     turned = (A + axis + sp.diags(np.asarray(axis.sum(axis=1)).ravel())).tocsr()   # + a signless Laplacian: SPD

@@ -70,13 +70,17 @@ class DirectPC:
         :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new analysis. These choices were made for a
         matrix that is not singular (dominant rows; rows that sum to a share of their diagonal; no null space and row
         sums that do not all vanish), so their factor skips the grounding test (0.3 s at 1M rows).
+    trial : petsc4py.PETSc.PC, optional
+        The ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one rank): applied as it is
+        where no option is set under the prefix (at 64 000 rows its factor cost 16 ms of Q1 hexahedra's setup).
     """
 
     whole = True            # one factor of the whole matrix: no leaves, so the rows' split over the ranks costs nothing
 
-    def __init__(self, mat, rows, kind, prefix, why=None, holds=None):
+    def __init__(self, mat, rows, kind, prefix, why=None, holds=None, trial=None):
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix, self.why, self.holds = mat, kind, prefix + "leaf_", why, holds
+        self.trial = trial
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
         self.G = self.pc = None
@@ -102,7 +106,7 @@ class DirectPC:
         target = self._grounded(rows, every) if ground else self.mat
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
-            self.pc, self.rest = configured_pc(self.mat.getComm(), target, self.prefix, factor)
+            self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
             if self.ranks > 1 and self.kind not in BLOCKED and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)
@@ -121,6 +125,20 @@ class DirectPC:
             if negative:
                 raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
                                  f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+
+    def _adopted(self, target):
+        """(the trial's PC, no options left) where it may serve as the factor: ICC(0) of ``target`` itself, on one
+        rank, with no option under the prefix; else None (the trial's PC freed)."""
+        pc, self.trial = self.trial, None
+        if pc is None:
+            return None
+        mine = [name for name in PETSc.Options().getAll() if name.startswith(self.prefix)]
+        if self.kind != "icc" or self.ranks > 1 or mine or pc.getOperators()[0].handle != target.handle:
+            pc.destroy()
+            return None
+        pc.setOptionsPrefix(self.prefix)
+        pc.setFactorShift(shift_type=PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE)   # FACTORS' (new values' factor)
+        return pc, {}
 
     def _grounded(self, rows, every=False):
         """The operator, or its copy with one diagonal entry of each null component (``every`` component) raised (one
@@ -200,8 +218,8 @@ class DirectPC:
                 f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}", memory]
 
     def destroy(self):
-        """Free the factor and the grounded copy."""
-        for name in ("pc", "G"):
+        """Free the factor, the grounded copy and a trial PC not taken."""
+        for name in ("pc", "G", "trial"):
             obj = getattr(self, name, None)
             if obj is not None:
                 obj.destroy()

@@ -73,28 +73,28 @@ def why_icc(mat, A, per_row, coll, bare=True):
     rank's trial on its whole block, unshifted, where it holds at most :data:`WHOLE_NNZ` entries, brings the
     residual below :data:`TRIAL_DROP`. Collective."""
     if mat.getNullSpace().handle:
-        return None, None, False
+        return None, None, False, None
     start = mat.getOwnershipRange()[0]
     if bare and per_row <= STENCIL:
         weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
         if weight >= WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
-            drop = _trial(mat, A, coll, TRIAL_ROWS)
+            drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
             if drop <= TRIAL_DROP:
                 return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
-                    holds, True
+                    holds, True, factor
     if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX:
         weight = coll.max_array(np.array([positive_weight(A, start) if A.shape[0] else 0.0]))[0]
         if weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
-            drop = _trial(mat, A, coll, TRIAL_ROWS)
+            drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
             if drop <= TRIAL_DROP:
                 return _why(f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the "
-                            "diagonal", drop), wide, False
+                            "diagonal", drop), wide, False, factor
     share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
     if share >= SHIFT:
-        drop = _trial(mat, A, coll, None)
+        drop, factor = _trial(mat, A, coll, None)
         if drop <= TRIAL_DROP:
-            return _why(f"shifted rows (row sums {share:.2g} of the diagonal", drop), shifted, False
-    return None, None, False
+            return _why(f"shifted rows (row sums {share:.2g} of the diagonal", drop), shifted, False, factor
+    return None, None, False, None
 
 
 def _kept(mat, A, coll) -> bool:
@@ -116,14 +116,20 @@ def _why(what, drop) -> str:
 def _trial(mat, A, coll, size):
     """The largest over the ranks of :func:`trial_drop`: on a :func:`window` of ``size`` rows of each rank's block,
     PETSc's shift keeping the pivots positive, or (``size`` None) on the whole block, unshifted, where it holds at most
-    :data:`WHOLE_NNZ` entries; inf where a rank's window is less than half its size or its block larger."""
+    :data:`WHOLE_NNZ` entries; inf where a rank's window is less than half its size or its block larger. With it the
+    trial's ICC(0), set up, where one rank's trial passed on the whole matrix (the factor to apply), else None."""
+    kept = []
     with diagonal_block(mat, A) as block:
         if size is None:
             rows, skip = np.arange(block.shape[0]), block.nnz > WHOLE_NNZ
         else:
             rows = window(block, size)
             skip = rows.size < min(size, block.shape[0]) // 2
-    return coll.max_array(np.array([np.inf if skip else trial_drop(mat.getDiagonalBlock(), rows, size is not None)]))[0]
+    drop = coll.max_array(np.array([np.inf if skip else trial_drop(mat.getDiagonalBlock(), rows, size is not None,
+                                                                   kept)]))[0]
+    if kept and (coll.size > 1 or not drop <= TRIAL_DROP):
+        kept.pop().destroy()
+    return drop, kept[0] if kept else None
 
 
 def holds(rows, start) -> bool:
@@ -203,7 +209,7 @@ def window(A, size=TRIAL_ROWS) -> np.ndarray:
     return np.sort(np.concatenate(levels)[:size])
 
 
-def trial_drop(mat, rows, shift=True) -> float:
+def trial_drop(mat, rows, shift=True, kept=None) -> float:
     """The residual after :data:`TRIAL_ITS` CG iterations with ICC(0) from zero on a fixed random right-hand side in
     [0, 1) (its mean is the smooth part that ICC(0) leaves), over the first, on the ``rows`` (:func:`window`) of a
     sequential ``mat`` (a rank's diagonal block): iterations whose cost does not grow with N (at 1M rows the whole
@@ -211,7 +217,8 @@ def trial_drop(mat, rows, shift=True) -> float:
     broke down or a residual is not finite. ``shift``: ICC(0)'s pivots kept positive by PETSc's shift, else not, and
     a factor with a pivot that is not positive (its inertia) fails at once, with no iteration: such a pivot calls for
     the shift, under which a heat step on P1 tetrahedra at 262 144 rows took 299 iterations, and the shift's tries
-    repeat the factor."""
+    repeat the factor. ``kept``: a list that takes the trial's PC, set up, where the trial took the whole ``mat`` and
+    ended with a finite drop."""
     n = rows.size
     index = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=PETSc.COMM_SELF) if n < mat.getSize()[0] else None
     part = mat if index is None else mat.createSubMatrix(index, index)
@@ -242,6 +249,8 @@ def trial_drop(mat, rows, shift=True) -> float:
             return np.inf
         if history.size < 2 or not np.all(np.isfinite(history)) or not history[0] > 0:
             return np.inf
+        if kept is not None and index is None:
+            kept.append(pc)
         return float(history[-1] / history[0])
     finally:
         for obj in (ksp, b, x) + (() if index is None else (index, part)):
