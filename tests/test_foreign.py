@@ -503,6 +503,24 @@ def test_wide_rows_get_icc_of_the_whole_matrix(tmp_path):
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
 
 
+def test_a_chain_gets_a_band_cholesky_factor(tmp_path):
+    """A 1-D Laplacian (a chain) above the small sizes, in its own order and numbered at random: one Cholesky factor in
+    reverse Cuthill-McKee order, a band of A's size (the two-level method took 75 ms and 7 iterations at 65 536
+    rows), and -ksp_view says why; on two ranks gathered on each (PCREDUNDANT)."""
+    n = 20000
+    A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (n, n)).tocsr()
+    p = np.random.default_rng(0).permutation(n)
+    for M in (A, A[p][:, p].tocsr()):
+        reason, its, relres, ksp, _ = solve(M, np.random.default_rng(1).standard_normal(n))
+        factor = ksp.getPC().getPythonContext().setup.pc.getFactorMatrix()
+        assert reason > 0 and its <= 2 and relres <= 1e-8, (its, relres)
+        assert "its graph is a chain" in lines(ksp) and "rcm ordering" in lines(ksp), lines(ksp)
+        assert factor.getInfo()["nz_used"] <= 2 * n
+    proc = _on_two_ranks(A, tmp_path / "chain.petsc")
+    assert proc.returncode == 0 and "its graph is a chain" in proc.stdout, proc.stdout + proc.stderr
+    assert "PCREDUNDANT: cholesky, rcm ordering" in proc.stdout, proc.stdout
+
+
 def test_rows_split_at_random_over_two_ranks_get_paired_leaves(tmp_path):
     """Rows in a random order split by PETSc over two ranks (half the couplings join the ranks): the two-level
     method pairs its aggregates even where rich rows with positive couplings (rotated anisotropy) would take standard

@@ -27,7 +27,8 @@ from .inner import configured_pc, set_up
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
-                   "pc_factor_shift_type": "positive_definite"}}
+                   "pc_factor_shift_type": "positive_definite"},
+           "band": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "rcm", "pc_factor_shift_type": "nonzero"}}
 BLOCKS = {"pc_type": "bjacobi", "sub_pc_type": "icc", "sub_pc_factor_shift_type": "positive_definite"}
 OVERLAP = 4             # 'asm': layers each rank's block grows by (rotated anisotropy on 2 ranks, 262 144 rows: 1, 2, 4
 # and 8 layers 141, 114, 99 and 87 CG iterations on the 30-degree case, where each block alone took 241)
@@ -58,8 +59,8 @@ class DirectPC:
     rows : scipy.sparse.csr_matrix
         This rank's rows (the analysed pattern).
     kind : str
-        cholesky or icc (:data:`FACTORS`), or bjacobi or asm (ICC(0) of each rank's block, grown for asm:
-        :func:`factor_options`).
+        cholesky, band (Cholesky in reverse Cuthill-McKee order: a chain) or icc (:data:`FACTORS`), or bjacobi or asm
+        (ICC(0) of each rank's block, grown for asm: :func:`factor_options`).
     prefix : str
         Options prefix of the factor: ``<prefix>leaf_``.
     why : str, optional
@@ -67,8 +68,8 @@ class DirectPC:
     holds : callable, optional
         (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal dominance,
         :func:`.dominance.holds`; their row sums, :func:`.incomplete.shifted`; their anisotropy,
-        :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new analysis. These choices were made for a
-        matrix that is not singular (dominant rows; rows that sum to a share of their diagonal; no null space and row
+        :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new
+        analysis. These choices were made for a matrix that is not singular (dominant rows; rows that sum to a share of their diagonal; no null space and row
         sums that do not all vanish), so their factor skips the grounding test (0.3 s at 1M rows).
     trial : petsc4py.PETSc.PC, optional
         The ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one rank): applied as it is
@@ -198,7 +199,7 @@ class DirectPC:
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
         n = self.mat.getSize()[0]
-        what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
+        what = ("one sparse Cholesky factor (one iteration)" if self.kind in ("cholesky", "band") else
                 "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
         if self.kind in BLOCKED:
             what = ("ICC(0) of each rank's diagonal block (PCBJACOBI)" if self.kind == "bjacobi" else
@@ -207,7 +208,7 @@ class DirectPC:
             memory = f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
         elif self.ranks > 1:
             where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
-                     f"{self.kind}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
+                     f"{FACTORS[self.kind]['pc_type']}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
             memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
         else:
             where = (f" ({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "

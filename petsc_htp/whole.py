@@ -1,0 +1,134 @@
+"""Whether one factor of the whole matrix serves HTPPC's operator better than the two-level method, and which: the
+choice that the ``HTPChoice`` event times, made once per pattern.
+
+Small matrices get the factor their size and rows call for (:func:`.twolevel.sizing.whole_factor`). Above those
+sizes ICC(0) of the whole matrix (on several ranks of each rank's block) where the rows are diagonally dominant
+(:mod:`.twolevel.dominance`), where the graph is no mesh (:mod:`.twolevel.spread`), or where the rows are strongly
+anisotropic, wide or shifted and a short trial confirms it (:mod:`.twolevel.incomplete`); and one Cholesky factor in
+reverse Cuthill-McKee order where the graph is a chain (a 1-D problem's), whose factor is then a band that holds no
+more than A: a chain of 65 536 rows took 75 ms (7 iterations) in the two-level method, 9 ms so (1 iteration).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .collective import Collective
+
+
+class WholeChoice:
+    """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
+    alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`trial` (the ICC(0) trial's set-up PC,
+    once)."""
+
+    def __init__(self, opts):
+        self.opts, self.why, self.holds, self.factor = opts, None, None, None
+
+    def trial(self):
+        """The ICC(0) trial's PC, set up on the whole matrix (one rank), or None; handed over once."""
+        factor, self.factor = self.factor, None
+        return factor
+
+    def kind(self, mat, A, coords):
+        """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
+        every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
+        or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
+        (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi', grown for anisotropy,
+        'asm') where the rows are diagonally dominant (:meth:`_dominant`), or, bare, the graph is no mesh
+        (:meth:`_graph`) or the rows strongly anisotropic, wide or shifted (:meth:`_incomplete`), and Cholesky in
+        reverse Cuthill-McKee order, 'band', where the bare graph is a chain, :attr:`why` saying so."""
+        from .twolevel import sizing
+
+        o = self.opts
+        plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
+                 o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
+        n, coll = mat.getSize()[0], Collective(mat.getComm())
+        per_row = coll.sum(A.nnz) / max(n, 1)
+        if coll.size > 1 and coll.any(A.shape[0] == 0):
+            return self._empty_rank(n, coll.size, per_row)
+        if not plain:
+            return None
+        if o.direct_max >= 0:
+            return "cholesky" if n <= o.direct_max else None
+        if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
+            kind = self._dominant(mat, A, coll)
+            if kind is None and coords is None:
+                kind = self._graph(mat, A, coll, per_row)
+            return kind or self._incomplete(mat, A, coll, per_row, coords is None)
+        # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
+        if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
+            return "cholesky"
+        if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
+            return "icc"                                                  # the same in any dimension
+        dim = coords.shape[1] if coords is not None else self._block_shape(mat, A).dim
+        return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
+
+    def _dominant(self, mat, A, coll):
+        """'icc' (on several ranks 'bjacobi') where every coupled row is diagonally dominant by at least
+        :data:`.twolevel.dominance.MARGIN`, else None (collective)."""
+        from .twolevel import dominance
+
+        c = dominance.margin(A, mat.getOwnershipRange()[0])
+        c = coll.min_array(np.array([c if c == c else -np.inf]))[0]       # nan (none so far) would split the ranks
+        if not c >= dominance.MARGIN:
+            return None
+        self.why, self.holds = dominance.describe(c), dominance.holds
+        return "icc" if coll.size == 1 else "bjacobi"
+
+    def _graph(self, mat, A, coll, per_row):
+        """'band' where the graph is a chain (:func:`.twolevel.sizing.chain`, ``per_row`` stored entries a row), 'icc'
+        (on several ranks 'bjacobi') where it grows faster than any mesh's (a small-world network) in a rank's diagonal
+        block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments that grow less), or
+        where a large share of the couplings crosses ranks in the whole graph (:mod:`.twolevel.spread`), else None
+        (collective)."""
+        from .ranksplit import crossing
+        from .twolevel import sizing, spread
+
+        growth = self._block_shape(mat, A).growth
+        growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
+        if sizing.chain(growth, per_row):
+            self.why = (f"its graph is a chain (balls grow with exponent {growth:.2f}): in reverse Cuthill-McKee order "
+                        "the factor is a band")
+            return "band"
+        if coll.size > 1 and not growth >= sizing.EXPANDER_GROWTH:
+            if crossing(mat, A, coll, A.data != 0)[1] >= spread.CROSSING:    # the blocks keep too few couplings to tell
+                growth = spread.global_growth(mat, A, coll)
+        if not growth >= sizing.EXPANDER_GROWTH:
+            return None
+        self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "
+                    "space does not pay")
+        return "icc" if coll.size == 1 else "bjacobi"
+
+    def _incomplete(self, mat, A, coll, per_row, bare):
+        """'icc' (on several ranks 'bjacobi', or 'asm' with each rank's block grown for anisotropy) where the rows are
+        shifted or, ``bare``, strongly anisotropic or wide and a trial confirms it
+        (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
+        from .twolevel import incomplete
+
+        self.why, self.holds, grown, self.factor = incomplete.why_icc(mat, A, per_row, coll, bare)
+        if self.why is None:
+            return None
+        return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"
+
+    @staticmethod
+    def _block_shape(mat, A):
+        """What this rank's diagonal block of the graph shows (:mod:`.twolevel.graphshape`: dimension and growth),
+        from 8 sampled balls."""
+        from .petscmat import diagonal_block
+        from .twolevel.graphshape import graph_shape
+
+        with diagonal_block(mat, A) as block:
+            return graph_shape(block, want_weak=False, samples=8)
+
+    @staticmethod
+    def _empty_rank(n, ranks, per_row):
+        """A matrix with a rank that owns no rows, which the two-level method cannot take: whatever the options, up to
+        :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank (Cholesky where rows hold at
+        most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above a named error."""
+        from .twolevel import sizing
+        from .validation import MatrixError
+
+        if n <= sizing.REDUNDANT_MAX:
+            return "cholesky" if per_row <= sizing.RICH_ROW else "icc"
+        raise MatrixError(f"the matrix has a rank without rows ({n} rows on {ranks} ranks); HTPPC's two-level "
+                          f"method needs rows on every rank (up to {sizing.REDUNDANT_MAX} rows one factor of the whole "
+                          "matrix serves instead): give every rank rows, or take PCTELESCOPE around HTPPC")
