@@ -116,16 +116,21 @@ def _q1_element() -> np.ndarray:
     return k
 
 
-def q1_laplacian(n, frame=0) -> tuple:
+def q1_laplacian(n, frame=0, contrast=None) -> tuple:
     """(A, b): a Q1 (trilinear hexahedra) Laplacian with about ``n`` unknowns on a uniform cube mesh, Dirichlet
     boundary nodes eliminated: 27-point rows, diagonal 8/3, the six axis neighbours 0 (stored zeros), twelve -1/6
     and eight -1/12, so no coupling reaches 1/16 of the diagonal (smoothed aggregation's measure).
-    ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)); frames share the pattern."""
+    ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)); frames share the pattern. ``contrast``:
+    the elements in 8 random balls (radii 0.05-0.2 of the edge, drawn from ``frame``) take that conductivity."""
     side = max(3, int(round(n ** (1.0 / 3.0)))) + 2            # nodes per edge, the two boundary layers included
     e = side - 1
     nodes = _hex_nodes(side)
-    kappa = (np.exp(np.random.default_rng(frame).standard_normal(len(nodes))) if frame
-             else np.ones(len(nodes)))
+    rng = np.random.default_rng(frame)
+    kappa = np.exp(rng.standard_normal(len(nodes))) if frame and contrast is None else np.ones(len(nodes))
+    if contrast is not None:
+        centre = (np.argwhere(np.ones((e, e, e))) + 0.5) / e
+        for _ in range(8):
+            kappa[np.linalg.norm(centre - rng.random(3), axis=1) < 0.05 + 0.15 * rng.random()] = contrast
     vals = kappa[:, None, None] * _q1_element()[None, :, :]
     rows = np.repeat(nodes, 8, axis=1).ravel()
     cols = np.tile(nodes, (1, 8)).ravel()

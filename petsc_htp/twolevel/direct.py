@@ -69,8 +69,9 @@ class DirectPC:
         (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal dominance,
         :func:`.dominance.holds`; their row sums, :func:`.incomplete.shifted`; their anisotropy,
         :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new
-        analysis. These choices were made for a matrix that is not singular (dominant rows; rows that sum to a share of their diagonal; no null space and row
-        sums that do not all vanish), so their factor skips the grounding test (0.3 s at 1M rows).
+        analysis. These choices were made for a matrix that is not singular (dominant rows; rows that sum to a share
+        of their diagonal; no null space and row sums that do not all vanish), so their factor skips the grounding
+        test (0.3 s at 1M rows).
     trial : petsc4py.PETSc.PC, optional
         The ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one rank): applied as it is
         where no option is set under the prefix (at 64 000 rows its factor cost 16 ms of Q1 hexahedra's setup).

@@ -12,10 +12,13 @@ graph ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows HTPPC then to
 iterations) at dt = h^2 and 10 h^2 against its two-level method's 451 and 491 (``results/shifted-20261127``).
 
 Wide rows: a 27-point stencil's or Q1 hexahedra's rows hold 27 stored entries, each coupling weak (1/26 to 1/16 of
-the diagonal) and none positive; ICC(0) of the whole matrix keeps most of such a matrix, and at 64 000 rows took 95-156
-ms (32-38 iterations) against the two-level method's 248-494, at 1M rows 4.4-5.2 s (74) against 4.7-6.0; rows of at
-least :data:`WIDE_ROW` entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) take
-the trial on a graph ball, up to :data:`WIDE_MAX` rows (coefficient jumps of 1e4 fail it: 0.86).
+the diagonal) and none positive; ICC(0) of the whole matrix keeps most of such a matrix (``results/wide-20261127``:
+at 64 000 rows 78-96 ms alone, 31-36 iterations, against the two-level method's 197-429; at 262 144 rows 583-659 (46-52)
+against 932-2 066; at 1M rows 4.4-5.2 s (74) against 4.7-6.0, no longer a gain). Rows of at least :data:`WIDE_ROW`
+entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) and whose diagonal spans at
+most :data:`CONTRAST` take the trial on a graph ball, up to :data:`WIDE_MAX` rows: conductivity balls of contrast 1e4
+took ICC(0) 74 and 115 iterations at 64 000 and 262 144 rows (the two-level method 20 and 21), and the ball of the
+larger matrix passed the trial.
 
 Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
 at about 22-68 degrees, FE within about 32 degrees of the axes) holds positive off-diagonal couplings that weigh
@@ -53,7 +56,8 @@ STENCIL = 10.0          # ... in rows of at most this many stored entries (9-poi
 SHIFT = 0.0025          # the median sampled row's sum over its diagonal from which to try ICC(0) (dominance's margin)
 WHOLE_NNZ = 1 << 21     # ... where a rank's block holds at most this many stored entries (the trial takes it whole)
 WIDE_ROW = 20.0         # rows of at least this many stored entries (27-point stencils, Q1 hexahedra) try ICC(0) ...
-WIDE_MAX = 1 << 20      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 74 at 1M rows)
+WIDE_MAX = 1 << 18      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 74 at 1M rows)
+CONTRAST = 1e3          # ... whose diagonal entries span at most this factor (coefficient jumps: their low modes)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
@@ -69,9 +73,10 @@ def why_icc(mat, A, per_row, coll, bare=True):
     of the diagonal on every rank, not every row sum vanishes, the ranks' blocks keep the couplings (:func:`_kept`)
     and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Then wide rows (``bare``,
     at most :data:`WIDE_MAX` rows): at least :data:`WIDE_ROW` entries a row, positive couplings below :data:`WEIGHT` on
-    every rank, and the same tests and trial (:func:`wide`). Else shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its diagonal on every rank, and every
-    rank's trial on its whole block, unshifted, where it holds at most :data:`WHOLE_NNZ` entries, brings the
-    residual below :data:`TRIAL_DROP`. Collective."""
+    every rank, a diagonal that spans at most :data:`CONTRAST` (:func:`_spread`), and the same tests and trial
+    (:func:`wide`). Else shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its
+    diagonal on every rank, and every rank's trial on its whole block, unshifted, where it holds at most
+    :data:`WHOLE_NNZ` entries, brings the residual below :data:`TRIAL_DROP`. Collective."""
     if mat.getNullSpace().handle:
         return None, None, False, None
     start = mat.getOwnershipRange()[0]
@@ -82,7 +87,7 @@ def why_icc(mat, A, per_row, coll, bare=True):
             if drop <= TRIAL_DROP:
                 return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
                     holds, True, factor
-    if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX:
+    if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX and _spread(A, start, coll) <= CONTRAST:
         weight = coll.max_array(np.array([positive_weight(A, start) if A.shape[0] else 0.0]))[0]
         if weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
             drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
@@ -95,6 +100,16 @@ def why_icc(mat, A, per_row, coll, bare=True):
         if drop <= TRIAL_DROP:
             return _why(f"shifted rows (row sums {share:.2g} of the diagonal", drop), shifted, False, factor
     return None, None, False, None
+
+
+def _spread(A, start, coll) -> float:
+    """The largest |a_ii| of a rank's rows ``A`` over their least nonzero one, over all ranks (inf where all are
+    zero). Collective."""
+    diag = np.abs(A.diagonal(k=start))
+    diag = diag[diag > 0]
+    top = coll.max_array(np.array([diag.max(initial=0.0)]))[0]
+    least = coll.min_array(np.array([diag.min(initial=np.inf)]))[0]
+    return top / least if least < np.inf else np.inf
 
 
 def _kept(mat, A, coll) -> bool:
@@ -196,7 +211,7 @@ def window(A, size=TRIAL_ROWS) -> np.ndarray:
     if n <= size:
         return np.arange(n)
     coupled = np.flatnonzero(np.diff(A.indptr)[n // 2:] > 1)
-    seen = np.zeros(n, dtype=bool)
+    seen, stamp = np.zeros(n, dtype=bool), np.empty(n, dtype=np.int64)
     level = np.array([n // 2 + int(coupled[0]) if coupled.size else n // 2])
     levels, count = [], 0
     while level.size and count < size:
@@ -204,8 +219,12 @@ def window(A, size=TRIAL_ROWS) -> np.ndarray:
         levels.append(level)
         count += level.size
         where, _ = row_entries(A.indptr, level)
-        level = np.unique(A.indices[where])
+        level = A.indices[where]
         level = level[~seen[level]]
+        seen[level] = True                                   # each row once (no sort: a stamp per row)
+        stamp[level] = np.arange(level.size)
+        level = level[stamp[level] == np.arange(level.size)]
+    levels[-1] = np.sort(levels[-1])                        # the rows it cuts: the last level's highest
     return np.sort(np.concatenate(levels)[:size])
 
 
