@@ -6,7 +6,8 @@ sizes ICC(0) of the whole matrix (on several ranks of each rank's block) where t
 (:mod:`.twolevel.dominance`), where the graph is no mesh (:mod:`.twolevel.spread`), or where the rows are strongly
 anisotropic, wide or shifted and a short trial confirms it (:mod:`.twolevel.incomplete`); and one Cholesky factor in
 reverse Cuthill-McKee order where the graph is a chain (a 1-D problem's), whose factor is then a band that holds no
-more than A: a chain of 65 536 rows took 75 ms (7 iterations) in the two-level method, 9 ms so (1 iteration).
+more than A: a chain of 64 000 rows took 47 ms (5 iterations) in the two-level method, 15 ms so (1 iteration;
+``results/wide-20261127``).
 """
 from __future__ import annotations
 
@@ -17,16 +18,16 @@ from .collective import Collective
 
 class WholeChoice:
     """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
-    alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`trial` (the ICC(0) trial's set-up PC,
-    once)."""
+    alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_trial` (the ICC(0) trial's set-up
+    PC, once)."""
 
     def __init__(self, opts):
-        self.opts, self.why, self.holds, self.factor = opts, None, None, None
+        self.opts, self.why, self.holds, self.trial_pc = opts, None, None, None
 
-    def trial(self):
+    def take_trial(self):
         """The ICC(0) trial's PC, set up on the whole matrix (one rank), or None; handed over once."""
-        factor, self.factor = self.factor, None
-        return factor
+        pc, self.trial_pc = self.trial_pc, None
+        return pc
 
     def kind(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
@@ -75,23 +76,24 @@ class WholeChoice:
         return "icc" if coll.size == 1 else "bjacobi"
 
     def _graph(self, mat, A, coll, per_row):
-        """'band' where the graph is a chain (:func:`.twolevel.sizing.chain`, ``per_row`` stored entries a row), 'icc'
-        (on several ranks 'bjacobi') where it grows faster than any mesh's (a small-world network) in a rank's diagonal
-        block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments that grow less), or
-        where a large share of the couplings crosses ranks in the whole graph (:mod:`.twolevel.spread`), else None
-        (collective)."""
+        """'icc' (on several ranks 'bjacobi') where the graph grows faster than any mesh's (a small-world network) in a
+        rank's diagonal block (the largest growth over the ranks: a rank's part of a mesh is a mesh, or fragments that
+        grow less), or where a large share of the couplings crosses ranks in the whole graph (:mod:`.twolevel.spread`);
+        'band' where that growth shows a chain (:func:`.twolevel.sizing.chain`, ``per_row`` stored entries a row: a
+        random graph of 3.2 entries a row split over 2 ranks left blocks growing as 0.44 and 0.92, the whole graph
+        2.2); else None (collective)."""
         from .ranksplit import crossing
         from .twolevel import sizing, spread
 
         growth = self._block_shape(mat, A).growth
         growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
-        if sizing.chain(growth, per_row):
-            self.why = (f"its graph is a chain (balls grow with exponent {growth:.2f}): in reverse Cuthill-McKee order "
-                        "the factor is a band")
-            return "band"
         if coll.size > 1 and not growth >= sizing.EXPANDER_GROWTH:
             if crossing(mat, A, coll, A.data != 0)[1] >= spread.CROSSING:    # the blocks keep too few couplings to tell
                 growth = spread.global_growth(mat, A, coll)
+        if np.isfinite(growth) and sizing.chain(growth, per_row):
+            self.why = (f"its graph is a chain (balls grow with exponent {growth:.2f}): in reverse Cuthill-McKee order "
+                        "the factor is a band")
+            return "band"
         if not growth >= sizing.EXPANDER_GROWTH:
             return None
         self.why = (f"its graph is no mesh (balls grow with exponent {growth:.1f}, meshes' 1.6-2.7): a coarse "
@@ -104,7 +106,7 @@ class WholeChoice:
         (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
         from .twolevel import incomplete
 
-        self.why, self.holds, grown, self.factor = incomplete.why_icc(mat, A, per_row, coll, bare)
+        self.why, self.holds, grown, self.trial_pc = incomplete.why_icc(mat, A, per_row, coll, bare)
         if self.why is None:
             return None
         return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"

@@ -121,7 +121,8 @@ def q1_laplacian(n, frame=0, contrast=None) -> tuple:
     boundary nodes eliminated: 27-point rows, diagonal 8/3, the six axis neighbours 0 (stored zeros), twelve -1/6
     and eight -1/12, so no coupling reaches 1/16 of the diagonal (smoothed aggregation's measure).
     ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)); frames share the pattern. ``contrast``:
-    the elements in 8 random balls (radii 0.05-0.2 of the edge, drawn from ``frame``) take that conductivity."""
+    in place of the log-normal field, the elements in 8 random balls (radii 0.05-0.2 of the edge, drawn from
+    ``frame``) take that conductivity, the others 1."""
     side = max(3, int(round(n ** (1.0 / 3.0)))) + 2            # nodes per edge, the two boundary layers included
     e = side - 1
     nodes = _hex_nodes(side)

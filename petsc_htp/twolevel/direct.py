@@ -40,7 +40,7 @@ BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 def factor_options(kind: str, ranks: int) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
     matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
-    dominant or shifted rows, a graph that is no mesh): ICC(0) of each rank's diagonal block (:data:`BLOCKS`), and
+    dominant, shifted or wide rows, a graph that is no mesh): ICC(0) of each rank's diagonal block (:data:`BLOCKS`), and
     for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers, additive and
     symmetric (:data:`GROWN`)."""
     if kind in BLOCKED:
@@ -134,12 +134,16 @@ class DirectPC:
         pc, self.trial = self.trial, None
         if pc is None:
             return None
-        mine = [name for name in PETSc.Options().getAll() if name.startswith(self.prefix)]
-        if self.kind != "icc" or self.ranks > 1 or mine or pc.getOperators()[0].handle != target.handle:
+        mine = [name for name in PETSc.Options().getAll() if name.lower().startswith(self.prefix.lower())]
+        try:
+            if self.kind != "icc" or self.ranks > 1 or mine or pc.getOperators()[1].handle != target.handle:
+                pc.destroy()
+                return None
+            pc.setOptionsPrefix(self.prefix)
+            pc.setFactorShift(shift_type=PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE)   # FACTORS' (new values')
+        except BaseException:
             pc.destroy()
-            return None
-        pc.setOptionsPrefix(self.prefix)
-        pc.setFactorShift(shift_type=PETSc.Mat.FactorShiftType.POSITIVE_DEFINITE)   # FACTORS' (new values' factor)
+            raise
         return pc, {}
 
     def _grounded(self, rows, every=False):

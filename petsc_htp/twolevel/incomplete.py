@@ -11,10 +11,10 @@ for the shift, under which ICC(0) took 299 iterations (the two-level method 42, 
 graph ball of 8 192 or 65 536 rows held that pivot. At 64 000 rows HTPPC then took 166 and 277 ms (15 and 39
 iterations) at dt = h^2 and 10 h^2 against its two-level method's 451 and 491 (``results/shifted-20261127``).
 
-Wide rows: a 27-point stencil's or Q1 hexahedra's rows hold 27 stored entries, each coupling weak (1/26 to 1/16 of
+Wide rows: a 27-point stencil's or Q1 hexahedra's rows hold 27 stored entries, each coupling weak (1/32 to 1/16 of
 the diagonal) and none positive; ICC(0) of the whole matrix keeps most of such a matrix (``results/wide-20261127``:
-at 64 000 rows 78-96 ms alone, 31-36 iterations, against the two-level method's 197-429; at 262 144 rows 583-659 (46-52)
-against 932-2 066; at 1M rows 4.4-5.2 s (74) against 4.7-6.0, no longer a gain). Rows of at least :data:`WIDE_ROW`
+at 64 000 rows 84-121 ms alone, 31-36 iterations, against the two-level method's 210-441; at 262 144 rows 570-633
+(46-52) against 910-2 150; at 1M rows, out1m.txt, no longer a gain). Rows of at least :data:`WIDE_ROW`
 entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) and whose diagonal spans at
 most :data:`CONTRAST` take the trial on a graph ball, up to :data:`WIDE_MAX` rows: conductivity balls of contrast 1e4
 took ICC(0) 74 and 115 iterations at 64 000 and 262 144 rows (the two-level method 20 and 21), and the ball of the
@@ -67,8 +67,9 @@ HALFWAY = 2.0           # ... and be below this times the first halfway
 def why_icc(mat, A, per_row, coll, bare=True):
     """Why ICC(0) of the whole matrix (of each rank's block on several ranks) serves ``mat`` (this rank's rows ``A``,
     scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), the test that new values still
-    call for it (:func:`holds` or :func:`shifted`) and whether the ranks' blocks are to be grown (anisotropy), or
-    (None, None, False); never with a null space attached. Strongly anisotropic rows first (``bare`` matrices, no
+    call for it (:func:`holds`, :func:`wide` or :func:`shifted`), whether the ranks' blocks are to be grown
+    (anisotropy) and the trial's set-up PC where it took the whole matrix on one rank (the factor to apply, else None),
+    or (None, None, False, None); never with a null space attached. Strongly anisotropic rows first (``bare`` matrices, no
     coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT`
     of the diagonal on every rank, not every row sum vanishes, the ranks' blocks keep the couplings (:func:`_kept`)
     and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Then wide rows (``bare``,
@@ -88,7 +89,7 @@ def why_icc(mat, A, per_row, coll, bare=True):
                 return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
                     holds, True, factor
     if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX and _spread(A, start, coll) <= CONTRAST:
-        weight = coll.max_array(np.array([positive_weight(A, start) if A.shape[0] else 0.0]))[0]
+        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
         if weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
             drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
             if drop <= TRIAL_DROP:
@@ -102,13 +103,14 @@ def why_icc(mat, A, per_row, coll, bare=True):
     return None, None, False, None
 
 
-def _spread(A, start, coll) -> float:
-    """The largest |a_ii| of a rank's rows ``A`` over their least nonzero one, over all ranks (inf where all are
-    zero). Collective."""
+def _spread(A, start, coll=None) -> float:
+    """The largest |a_ii| of a rank's rows ``A`` (their diagonal in column ``start`` + row) over their least nonzero
+    one, over all ranks of ``coll`` (collective; None: this rank's), inf where all are zero."""
     diag = np.abs(A.diagonal(k=start))
     diag = diag[diag > 0]
-    top = coll.max_array(np.array([diag.max(initial=0.0)]))[0]
-    least = coll.min_array(np.array([diag.min(initial=np.inf)]))[0]
+    top, least = diag.max(initial=0.0), diag.min(initial=np.inf)
+    if coll is not None:
+        top, least = coll.max_array(np.array([top]))[0], coll.min_array(np.array([least]))[0]
     return top / least if least < np.inf else np.inf
 
 
@@ -154,9 +156,10 @@ def holds(rows, start) -> bool:
 
 
 def wide(rows, start) -> bool:
-    """Whether new values ``rows`` (as for :func:`holds`) keep their positive couplings below the weight
-    (:data:`WEIGHT`) of wide rows that chose ICC(0) (a rank without rows keeps them)."""
-    return not rows.shape[0] or positive_weight(rows, start) < WEIGHT
+    """Whether new values ``rows`` (as for :func:`holds`) keep what chose ICC(0) for wide rows: positive couplings
+    below :data:`WEIGHT` and a diagonal that spans at most :data:`CONTRAST` on this rank (jumps that move in call for
+    a new analysis)."""
+    return positive_weight(rows, start) < WEIGHT and _spread(rows, start) <= CONTRAST
 
 
 def shifted(rows, start) -> bool:
@@ -214,8 +217,8 @@ def window(A, size=TRIAL_ROWS) -> np.ndarray:
     seen, stamp = np.zeros(n, dtype=bool), np.empty(n, dtype=np.int64)
     level = np.array([n // 2 + int(coupled[0]) if coupled.size else n // 2])
     levels, count = [], 0
+    seen[level] = True
     while level.size and count < size:
-        seen[level] = True
         levels.append(level)
         count += level.size
         where, _ = row_entries(A.indptr, level)
