@@ -14,7 +14,8 @@ iterations) at dt = h^2 and 10 h^2 against its two-level method's 451 and 491 (`
 Wide rows: a 27-point stencil's or Q1 hexahedra's rows hold 27 stored entries, each coupling weak (1/32 to 1/16 of
 the diagonal) and none positive; ICC(0) of the whole matrix keeps most of such a matrix (``results/wide-20261127``:
 at 64 000 rows 84-121 ms alone, 31-36 iterations, against the two-level method's 210-441; at 262 144 rows 570-633
-(46-52) against 910-2 150; at 1M rows, out1m.txt, no longer a gain). Rows of at least :data:`WIDE_ROW`
+(46-52) against 910-2 150; at 1M rows, out1m.txt and out1m-rule.txt, 4.7 s with the rule against the two-level
+method's 4.8-4.9: no longer a gain, at 71 iterations against 15-19). Rows of at least :data:`WIDE_ROW`
 entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) and whose diagonal spans at
 most :data:`CONTRAST` take the trial on a graph ball, up to :data:`WIDE_MAX` rows: conductivity balls of contrast 1e4
 took ICC(0) 74 and 115 iterations at 64 000 and 262 144 rows (the two-level method 20 and 21), and the ball of the
@@ -56,7 +57,7 @@ STENCIL = 10.0          # ... in rows of at most this many stored entries (9-poi
 SHIFT = 0.0025          # the median sampled row's sum over its diagonal from which to try ICC(0) (dominance's margin)
 WHOLE_NNZ = 1 << 21     # ... where a rank's block holds at most this many stored entries (the trial takes it whole)
 WIDE_ROW = 20.0         # rows of at least this many stored entries (27-point stencils, Q1 hexahedra) try ICC(0) ...
-WIDE_MAX = 1 << 18      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 74 at 1M rows)
+WIDE_MAX = 1 << 18      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 71 at 1M rows)
 CONTRAST = 1e3          # ... whose diagonal entries span at most this factor (coefficient jumps: their low modes)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
