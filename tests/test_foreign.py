@@ -520,6 +520,31 @@ def test_wide_rows_get_icc_of_the_whole_matrix(tmp_path, monkeypatch):
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
 
 
+def test_grid_aligned_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
+    """A 5-point stencil whose strong direction follows the grid (eps 0.001): half its couplings are weak and ICC(0)'s
+    trial passes, so one rank takes ICC(0) of the whole matrix and -ksp_view says why; isotropic values on the same
+    pattern make a new analysis (two-level). On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
+    from pyamg.gallery import diffusion_stencil_2d, stencil_grid
+
+    from petsc_htp.twolevel import incomplete
+
+    A, iso = (stencil_grid(diffusion_stencil_2d(eps, 0.0, "FD"), (110, 110), format="csr") for eps in (0.001, 1.0))
+    assert incomplete.weak_share(A) >= incomplete.WEAK_SHARE > incomplete.weak_share(iso)
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    reason, its, relres, ksp, mat = solve(A, b)
+    assert reason > 0 and relres <= 1e-8 and its <= 40, (its, relres)
+    assert lines(ksp).startswith("whole matrix: ICC(0)") and "grid-aligned anisotropy" in lines(ksp), lines(ksp)
+    assert np.array_equal(iso.indptr, A.indptr) and np.array_equal(iso.indices, A.indices)
+    mat.setValuesCSR(iso.indptr, iso.indices, iso.data)
+    mat.assemble()
+    reason, _, relres, _, _ = solve(iso, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and ksp.getPC().getPythonContext().analysis_count == 2
+    assert "leaves: aggregation" in lines(ksp), lines(ksp)
+    proc = _on_two_ranks(sp.csr_matrix(A), tmp_path / "aligned.petsc")
+    assert proc.returncode == 0 and "grid-aligned anisotropy" in proc.stdout, proc.stdout + proc.stderr
+    assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
+
+
 def test_a_chain_gets_a_band_cholesky_factor(tmp_path):
     """A 1-D Laplacian (a chain) above the small sizes, in its own order and numbered at random: one Cholesky factor in
     reverse Cuthill-McKee order, a band of A's size (the two-level method took 47 ms and 5 iterations at 64 000

@@ -43,9 +43,10 @@ Neumann matrix stalled (500 iterations at 70 225 rows, the two-level method 95).
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from petsc4py import PETSc
 
-from .aggregation import SAMPLE_ROWS
+from .aggregation import SAMPLE_ROWS, THETA, sampled_shares
 from .csr import row_entries
 from .nullspace import vanishing
 from ..petscmat import diagonal_block
@@ -59,6 +60,9 @@ WHOLE_NNZ = 1 << 21     # ... where a rank's block holds at most this many store
 WIDE_ROW = 20.0         # rows of at least this many stored entries (27-point stencils, Q1 hexahedra) try ICC(0) ...
 WIDE_MAX = 1 << 18      # ... in matrices of at most this many rows (ICC(0)'s iterations grow with N: 71 at 1M rows)
 CONTRAST = 1e3          # ... whose diagonal entries span at most this factor (coefficient jumps: their low modes)
+SPARSE_ROW = 7.0        # rows of at most this many stored entries (5- and 7-point stencils) ...
+WEAK_SHARE = 0.3        # ... of whose sampled couplings this share or more is weak (below THETA) try ICC(0) ...
+WEAK_MAX = 1 << 17      # ... in matrices of at most this many rows (3-D at 262 144 rows: 682 against 754 ms)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
@@ -96,6 +100,14 @@ def why_icc(mat, A, per_row, coll, bare=True):
             if drop <= TRIAL_DROP:
                 return _why(f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the "
                             "diagonal", drop), wide, False, factor
+    if bare and per_row <= SPARSE_ROW and mat.getSize()[0] <= WEAK_MAX and _spread(A, start, coll) <= CONTRAST:
+        weak = coll.min_array(np.array([weak_share(A, start)]))[0]
+        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
+        if weak >= WEAK_SHARE and weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
+            drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
+            if drop <= TRIAL_DROP:
+                return _why(f"grid-aligned anisotropy ({100 * weak:.0f}% of the couplings weak", drop), aligned, \
+                    False, factor
     share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
     if share >= SHIFT:
         drop, factor = _trial(mat, A, coll, None)
@@ -161,6 +173,25 @@ def wide(rows, start) -> bool:
     below :data:`WEIGHT` and a diagonal that spans at most :data:`CONTRAST` on this rank (jumps that move in call for
     a new analysis)."""
     return positive_weight(rows, start) < WEIGHT and _spread(rows, start) <= CONTRAST
+
+
+def aligned(rows, start) -> bool:
+    """Whether new values ``rows`` (as for :func:`holds`) keep what chose ICC(0) for grid-aligned anisotropy: a share
+    of weak couplings of at least :data:`WEAK_SHARE`, positive couplings below :data:`WEIGHT` and a diagonal that
+    spans at most :data:`CONTRAST` on this rank."""
+    return (weak_share(rows, start) >= WEAK_SHARE and positive_weight(rows, start) < WEIGHT
+            and _spread(rows, start) <= CONTRAST)
+
+
+def weak_share(rows, start=0) -> float:
+    """The share of a rank's sampled couplings (:func:`.aggregation.sampled_shares` of its diagonal block, ``rows``'
+    columns ``start`` to ``start`` + rows) below :data:`.aggregation.THETA`: about half in a 5-point stencil whose
+    strong direction follows the grid, 0-0.04 in the foreign study's 5- and 7-point matrices; 1 (no say in the least
+    over the ranks) where a rank's block holds no coupling."""
+    n = rows.shape[0]
+    block = rows[:, start:start + n] if rows.shape[1] != n or start else rows
+    share = sampled_shares(sp.csr_matrix(block))[0]
+    return float(np.mean(share < THETA)) if share.size else 1.0
 
 
 def shifted(rows, start) -> bool:
