@@ -1,6 +1,15 @@
 """Where ICC(0) of the whole matrix beats a coarse space: shifted, wide or strongly anisotropic rows that a short
 trial confirms.
 
+Grid-aligned anisotropy: a 5- or 7-point stencil whose strong direction follows the grid (eps 0.001) holds weak
+couplings across its strong lines, half of its couplings (the foreign study's 5- and 7-point matrices 0-4 %), and
+ICC(0) in the grid's order nearly solves along the lines: at 64 000-65 536 rows 40 and 61 ms alone (42 and 64
+iterations) against the two-level method's 107 and 143 (``results/rotated-20261127/aligned.txt``). Rows of at most
+:data:`SPARSE_ROW` entries of which :data:`WEAK_SHARE` or more are weak (below :data:`.aggregation.THETA`), none
+strongly positive, take the trial on the whole matrix up to :data:`WEAK_MAX` rows (eps 0.01 fails it, where ICC(0)
+takes 119 iterations; at 131 044 rows the trial's graph ball, a diamond that cuts the strong lines short, failed
+eps 0.001 too: ``aligned131k.txt``).
+
 Shifted rows: one implicit step of the heat equation, M + dt K, holds a mass matrix's positive couplings beside
 the stiffness's negative ones, so it is not diagonally dominant (:mod:`.dominance`) though its rows sum to the mass,
 and ICC(0) of the whole matrix converges in a number of iterations bounded by the time step. Where the median
@@ -62,7 +71,7 @@ WIDE_MAX = 1 << 18      # ... in matrices of at most this many rows (ICC(0)'s it
 CONTRAST = 1e3          # ... whose diagonal entries span at most this factor (coefficient jumps: their low modes)
 SPARSE_ROW = 7.0        # rows of at most this many stored entries (5- and 7-point stencils) ...
 WEAK_SHARE = 0.3        # ... of whose sampled couplings this share or more is weak (below THETA) try ICC(0) ...
-WEAK_MAX = 1 << 17      # ... in matrices of at most this many rows (3-D at 262 144 rows: 682 against 754 ms)
+WEAK_MAX = 1 << 16      # ... in matrices of at most this many rows (at 131 044 the trial on a ball failed: 0.24)
 TRIAL_ITS = 10          # CG iterations of the trial
 TRIAL_ROWS = 65536      # ... on at most this many rows (anisotropic rows: a graph ball)
 TRIAL_DROP = 0.2        # ... whose residual must fall below this times the first
