@@ -89,40 +89,46 @@ def why_icc(mat, A, per_row, coll, bare=True):
     and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Then wide rows (``bare``,
     at most :data:`WIDE_MAX` rows): at least :data:`WIDE_ROW` entries a row, positive couplings below :data:`WEIGHT` on
     every rank, a diagonal that spans at most :data:`CONTRAST` (:func:`_spread`), and the same tests and trial
-    (:func:`wide`). Else shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its
+    (:func:`wide`). Then grid-aligned anisotropy (``bare``, at most :data:`WEAK_MAX` rows): at most :data:`SPARSE_ROW`
+    entries a row, :data:`WEAK_SHARE` or more of the sampled couplings weak on every rank, positive ones and the
+    diagonal as for wide rows, and the same tests and trial (:func:`aligned`); the gates in :func:`_candidates`. Else
+    shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its
     diagonal on every rank, and every rank's trial on its whole block, unshifted, where it holds at most
     :data:`WHOLE_NNZ` entries, brings the residual below :data:`TRIAL_DROP`. Collective."""
     if mat.getNullSpace().handle:
         return None, None, False, None
     start = mat.getOwnershipRange()[0]
-    if bare and per_row <= STENCIL:
-        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
-        if weight >= WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
+    for what, test, grown in _candidates(A, start, mat.getSize()[0], per_row, coll) if bare else ():
+        if coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
             drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
             if drop <= TRIAL_DROP:
-                return _why(f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", drop), \
-                    holds, True, factor
-    if bare and per_row >= WIDE_ROW and mat.getSize()[0] <= WIDE_MAX and _spread(A, start, coll) <= CONTRAST:
-        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
-        if weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
-            drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
-            if drop <= TRIAL_DROP:
-                return _why(f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the "
-                            "diagonal", drop), wide, False, factor
-    if bare and per_row <= SPARSE_ROW and mat.getSize()[0] <= WEAK_MAX and _spread(A, start, coll) <= CONTRAST:
-        weak = coll.min_array(np.array([weak_share(A, start)]))[0]
-        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
-        if weak >= WEAK_SHARE and weight < WEIGHT and coll.any(not _null_rows(A, start)) and _kept(mat, A, coll):
-            drop, factor = _trial(mat, A, coll, TRIAL_ROWS)
-            if drop <= TRIAL_DROP:
-                return _why(f"grid-aligned anisotropy ({100 * weak:.0f}% of the couplings weak", drop), aligned, \
-                    False, factor
+                return _why(what, drop), test, grown, factor
     share = coll.min_array(np.array([row_sum_share(A, start)]))[0]
     if share >= SHIFT:
         drop, factor = _trial(mat, A, coll, None)
         if drop <= TRIAL_DROP:
             return _why(f"shifted rows (row sums {share:.2g} of the diagonal", drop), shifted, False, factor
     return None, None, False, None
+
+
+def _candidates(A, start, n, per_row, coll):
+    """The rules of a bare matrix's rows (a rank's ``A``, ``n`` rows in all, ``per_row`` stored entries a row) whose
+    gates they pass, in order, for a trial on a graph ball: (what -ksp_view says, the test new values must pass, whether
+    the ranks' blocks are to be grown). Collective."""
+    if per_row <= STENCIL:
+        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
+        if weight >= WEIGHT:
+            yield f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", holds, True
+    if per_row >= WIDE_ROW and n <= WIDE_MAX and _spread(A, start, coll) <= CONTRAST:
+        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
+        if weight < WEIGHT:
+            yield f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the diagonal", \
+                wide, False
+    if per_row <= SPARSE_ROW and n <= WEAK_MAX and _spread(A, start, coll) <= CONTRAST:
+        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
+        weak = coll.min_array(np.array([weak_share(A, start)]))[0] if weight < WEIGHT else 0.0
+        if weak >= WEAK_SHARE:
+            yield f"grid-aligned anisotropy ({100 * weak:.0f}% of the couplings weak", aligned, False
 
 
 def _spread(A, start, coll=None) -> float:
