@@ -1,13 +1,13 @@
 """Whether one factor of the whole matrix serves HTPPC's operator better than the two-level method, and which: the
 choice that the ``HTPChoice`` event times, made once per pattern.
 
-Small matrices get the factor their size and rows call for (:func:`.twolevel.sizing.whole_factor`). Above those
-sizes ICC(0) of the whole matrix (on several ranks of each rank's block) where the rows are diagonally dominant
+Small matrices get the factor their size and rows call for (:func:`.twolevel.sizing.whole_factor`). Above those sizes
+ICC(0) of the whole matrix (on several ranks of each rank's block) where the rows are diagonally dominant
 (:mod:`.twolevel.dominance`), where the graph is no mesh (:mod:`.twolevel.spread`), or where the rows are strongly
-anisotropic, wide or shifted and a short trial confirms it (:mod:`.twolevel.incomplete`); and one Cholesky factor in
-reverse Cuthill-McKee order where the graph is a chain (a 1-D problem's), whose factor is then a band that holds no
-more than A: a chain of 64 000 rows took 47 ms (5 iterations) in the two-level method, 15 ms so (1 iteration;
-``results/wide-20261127``).
+anisotropic, wide, anisotropic along the grid or shifted and a short trial confirms it (:mod:`.twolevel.incomplete`);
+and one Cholesky factor in reverse Cuthill-McKee order where the graph is a chain (a 1-D problem's), whose factor is
+then a band that holds no more than A: a chain of 64 000 rows took 47 ms (5 iterations) in the two-level method, 15 ms
+so (1 iteration; ``results/wide-20261127``).
 """
 from __future__ import annotations
 
@@ -31,12 +31,12 @@ class WholeChoice:
 
     def kind(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
-        every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem,
-        or with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
+        every rank, PCREDUNDANT), or None: no two-level option set, and :func:`sizing.whole_factor` by the problem, or
+        with ``-htp_direct_max n`` >= 0 Cholesky up to n rows; where a rank owns no rows, :meth:`_empty_rank`
         (collective); above those sizes ICC(0) (on several ranks of each rank's block, 'bjacobi', grown for anisotropy,
         'asm') where the rows are diagonally dominant (:meth:`_dominant`), or, bare, the graph is no mesh
-        (:meth:`_graph`) or the rows strongly anisotropic, wide or shifted (:meth:`_incomplete`), and Cholesky in
-        reverse Cuthill-McKee order, 'band', where the bare graph is a chain, :attr:`why` saying so."""
+        (:meth:`_graph`) or the rows strongly or grid-aligned anisotropic, wide or shifted (:meth:`_incomplete`), and
+        Cholesky in reverse Cuthill-McKee order, 'band', where the bare graph is a chain, :attr:`why` saying so."""
         from .twolevel import sizing
 
         o = self.opts
