@@ -239,9 +239,10 @@ def _sampled(A, start, rows, positive) -> float:
     picked = np.arange(n) if n <= rows else np.sort(np.random.default_rng(0).choice(n, rows, replace=False))
     where, owner = row_entries(A.indptr, picked)
     values = A.data[where]
-    taken = (values > 0) & (A.indices[where] != picked[owner] + start) if positive else np.ones(values.size, bool)
+    on = A.indices[where] == picked[owner] + start                   # the sampled rows' diagonal entries
+    taken = (values > 0) & ~on if positive else np.ones(values.size, bool)
     total = np.bincount(owner[taken], values[taken], minlength=picked.size).astype(float)   # int where none is
-    diag = np.abs(A.diagonal(k=start)[picked])
+    diag = np.abs(np.bincount(owner[on], values[on], minlength=picked.size).astype(float))
     return float(np.median(np.divide(total, diag, out=np.zeros_like(total), where=diag > 0)))
 
 
