@@ -11,6 +11,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay
 
+from .gallery import balls
+
 
 def _points(dim, side, rng) -> tuple:
     """A jittered ``side``^dim lattice in a random order and which of its points lie on the boundary."""
@@ -121,17 +123,15 @@ def q1_laplacian(n, frame=0, contrast=None) -> tuple:
     boundary nodes eliminated: 27-point rows, diagonal 8/3, the six axis neighbours 0 (stored zeros), twelve -1/6
     and eight -1/12, so no coupling reaches 1/16 of the diagonal (smoothed aggregation's measure).
     ``frame`` > 0 gives every element a log-normal conductivity (e^N(0, 1)); frames share the pattern. ``contrast``:
-    in place of the log-normal field, the elements in 8 random balls (radii 0.05-0.2 of the edge, drawn from
-    ``frame``) take that conductivity, the others 1."""
+    in place of the log-normal field, the elements in 8 random balls (:func:`.gallery.balls`, drawn from ``frame``)
+    take that conductivity, the others 1."""
     side = max(3, int(round(n ** (1.0 / 3.0)))) + 2            # nodes per edge, the two boundary layers included
     e = side - 1
     nodes = _hex_nodes(side)
-    rng = np.random.default_rng(frame)
-    kappa = np.exp(rng.standard_normal(len(nodes))) if frame and contrast is None else np.ones(len(nodes))
     if contrast is not None:
-        centre = (np.argwhere(np.ones((e, e, e))) + 0.5) / e
-        for _ in range(8):
-            kappa[np.linalg.norm(centre - rng.random(3), axis=1) < 0.05 + 0.15 * rng.random()] = contrast
+        kappa = balls((e, e, e), contrast, frame, count=8).ravel()
+    else:
+        kappa = np.exp(np.random.default_rng(frame).standard_normal(len(nodes))) if frame else np.ones(len(nodes))
     vals = kappa[:, None, None] * _q1_element()[None, :, :]
     rows = np.repeat(nodes, 8, axis=1).ravel()
     cols = np.tile(nodes, (1, 8)).ravel()
