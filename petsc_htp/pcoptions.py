@@ -66,9 +66,9 @@ HELP = {
                   "petsc_htp.twolevel.sizing.whole_factor: sparse Cholesky up to 8000 rows in 2-D and 1000 in 3-D, "
                   "for a bare matrix with richer rows or a 3-D graph ICC(0) up to 8000, and at any size ICC(0) "
                   "(of each rank's block on several ranks) for diagonally dominant rows or, bare, a graph that is no "
-                  "mesh, and where a trial confirms it for anisotropic, wide or shifted rows; for a bare chain one "
-                  "Cholesky factor in RCM order; n >= 0: sparse Cholesky up to n rows; 0: never); whatever the options where a rank owns "
-                  "no rows, up to 8000 rows",
+                  "mesh, and where a trial confirms it for anisotropic (rotated or along the grid), wide or shifted "
+                  "rows; for a bare chain one Cholesky factor in RCM order; n >= 0: sparse Cholesky up to n rows; 0: "
+                  "never); whatever the options where a rank owns no rows, up to 8000 rows",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "BLAS, OpenMP and torch threads of this process (set process-wide at setup; -ksp_view says so; 1 "

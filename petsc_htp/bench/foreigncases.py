@@ -1,8 +1,8 @@
 """The matrices of the ``foreign`` study: families other programs hand over, sized to about N unknowns.
 
 Each case is ``make(n, frame) -> (A, b)``: frame 0 is the single solve; later frames keep the pattern and change
-the values (new coefficients, a turned anisotropy, a heat step's new time step), except the free surface, whose liquid moves, so each frame
-has a pattern of its own. PyAMG's shipped examples have their own size and no frames.
+the values (new coefficients, a turned anisotropy, a heat step's new time step), except the free surface, whose
+liquid moves, so each frame has a pattern of its own. PyAMG's shipped examples have their own size and no frames.
 """
 from __future__ import annotations
 

@@ -40,9 +40,9 @@ BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 def factor_options(kind: str, ranks: int) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
     matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
-    dominant, shifted or wide rows, a graph that is no mesh): ICC(0) of each rank's diagonal block (:data:`BLOCKS`), and
-    for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers, additive and
-    symmetric (:data:`GROWN`)."""
+    dominant, shifted, wide or grid-aligned rows, a graph that is no mesh): ICC(0) of each rank's diagonal block
+    (:data:`BLOCKS`), and for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers,
+    additive and symmetric (:data:`GROWN`)."""
     if kind in BLOCKED:
         return dict(BLOCKED[kind])
     opts = FACTORS[kind]
@@ -66,12 +66,12 @@ class DirectPC:
     why : str, optional
         Why the whole matrix is factored (None: it is small enough).
     holds : callable, optional
-        (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal dominance,
-        :func:`.dominance.holds`; their row sums, :func:`.incomplete.shifted`; their anisotropy,
-        :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide`): values that lose it call for a new
-        analysis. These choices were made for a matrix that is not singular (dominant rows; rows that sum to a share
-        of their diagonal; no null space and row sums that do not all vanish), so their factor skips the grounding
-        test (0.3 s at 1M rows).
+        (rows, start) -> bool, where the factor was chosen for what new values may lose (the rows' diagonal
+        dominance, :func:`.dominance.holds`; their row sums, :func:`.incomplete.shifted`; their anisotropy,
+        :func:`.incomplete.holds`; their weak couplings, :func:`.incomplete.wide` and :func:`.incomplete.aligned`):
+        values that lose it call for a new analysis. These choices were made for a matrix that is not singular
+        (dominant rows; rows that sum to a share of their diagonal; no null space and row sums that do not all
+        vanish), so their factor skips the grounding test (0.3 s at 1M rows).
     trial : petsc4py.PETSc.PC, optional
         The ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one rank): applied as it is
         where no option is set under the prefix (at 64 000 rows its factor cost 16 ms of Q1 hexahedra's setup).

@@ -1,5 +1,5 @@
-"""Where ICC(0) of the whole matrix beats a coarse space: shifted, wide or strongly anisotropic rows that a short
-trial confirms.
+"""Where ICC(0) of the whole matrix beats a coarse space: shifted, wide, grid-aligned or strongly anisotropic rows
+that a short trial confirms.
 
 Grid-aligned anisotropy: a 5- or 7-point stencil whose strong direction follows the grid (eps 0.001) holds weak
 couplings across its strong lines, half of its couplings (the foreign study's 5- and 7-point matrices 0-4 %), and
@@ -27,8 +27,8 @@ at 64 000 rows 84-121 ms alone, 31-36 iterations, against the two-level method's
 method's 4.8-4.9: no longer a gain, at 71 iterations against 15-19). Rows of at least :data:`WIDE_ROW`
 entries whose positive couplings weigh less than :data:`WEIGHT` (elasticity's weigh 0.97) and whose diagonal spans at
 most :data:`CONTRAST` take the trial on a graph ball, up to :data:`WIDE_MAX` rows: conductivity balls of contrast 1e4
-took ICC(0) 74 and 115 iterations at 64 000 and 262 144 rows (the two-level method 20 and 21), and the ball of the
-larger matrix passed the trial.
+took ICC(0) 74 and 116 iterations at 64 000 and 262 144 rows (the two-level method 20 and 21), and before this cut
+the ball of the larger matrix passed the trial (commit 27ba923).
 
 Diffusion whose strong direction is turned against the grid (PyAMG's ``diffusion_stencil_2d`` with eps <= 0.01: FD
 at about 22-68 degrees, FE within about 32 degrees of the axes) holds positive off-diagonal couplings that weigh
@@ -79,22 +79,22 @@ HALFWAY = 2.0           # ... and be below this times the first halfway
 
 
 def why_icc(mat, A, per_row, coll, bare=True):
-    """Why ICC(0) of the whole matrix (of each rank's block on several ranks) serves ``mat`` (this rank's rows ``A``,
-    scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), the test that new values still
-    call for it (:func:`holds`, :func:`wide` or :func:`shifted`), whether the ranks' blocks are to be grown
-    (anisotropy) and the trial's set-up PC where it took the whole matrix on one rank (the factor to apply, else None),
-    or (None, None, False, None); never with a null space attached. Strongly anisotropic rows first (``bare`` matrices, no
-    coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings weigh at least :data:`WEIGHT`
-    of the diagonal on every rank, not every row sum vanishes, the ranks' blocks keep the couplings (:func:`_kept`)
-    and every rank's trial on its :func:`window` brings its residual below :data:`TRIAL_DROP`. Then wide rows (``bare``,
-    at most :data:`WIDE_MAX` rows): at least :data:`WIDE_ROW` entries a row, positive couplings below :data:`WEIGHT` on
-    every rank, a diagonal that spans at most :data:`CONTRAST` (:func:`_spread`), and the same tests and trial
-    (:func:`wide`). Then grid-aligned anisotropy (``bare``, at most :data:`WEAK_MAX` rows): at most :data:`SPARSE_ROW`
-    entries a row, :data:`WEAK_SHARE` or more of the sampled couplings weak on every rank, positive ones and the
-    diagonal as for wide rows, and the same tests and trial (:func:`aligned`); the gates in :func:`_candidates`. Else
-    shifted rows (any matrix): the median sampled row sums to at least :data:`SHIFT` of its
-    diagonal on every rank, and every rank's trial on its whole block, unshifted, where it holds at most
-    :data:`WHOLE_NNZ` entries, brings the residual below :data:`TRIAL_DROP`. Collective."""
+    """Why ICC(0) of the whole matrix (of each rank's block on several ranks) serves ``mat`` (this rank's rows
+    ``A``, scipy CSR; ``per_row`` stored entries a row on average; ``coll`` its ranks), the test that new values
+    still call for it (:func:`holds`, :func:`wide`, :func:`aligned` or :func:`shifted`), whether the ranks' blocks
+    are to be grown (anisotropy) and the trial's set-up PC where it took the whole matrix on one rank (the factor to
+    apply, else None), or (None, None, False, None); never with a null space attached. Strongly anisotropic rows
+    first (``bare`` matrices, no coordinates): rows hold at most :data:`STENCIL` entries, their positive couplings
+    weigh at least :data:`WEIGHT` of the diagonal on every rank, not every row sum vanishes, the ranks' blocks keep
+    the couplings (:func:`_kept`) and every rank's trial on its :func:`window` brings its residual below
+    :data:`TRIAL_DROP`. Then wide rows (``bare``, at most :data:`WIDE_MAX` rows): at least :data:`WIDE_ROW` entries
+    a row, positive couplings below :data:`WEIGHT` on every rank, a diagonal that spans at most :data:`CONTRAST`
+    (:func:`_spread`), and the same tests and trial (:func:`wide`). Then grid-aligned anisotropy (``bare``, at most
+    :data:`WEAK_MAX` rows): at most :data:`SPARSE_ROW` entries a row, :data:`WEAK_SHARE` or more of the sampled
+    couplings weak on every rank, positive ones and the diagonal as for wide rows, and the same tests and trial
+    (:func:`aligned`); the gates in :func:`_candidates`. Else shifted rows (any matrix): the median sampled row sums
+    to at least :data:`SHIFT` of its diagonal on every rank, and every rank's trial on its whole block, unshifted,
+    where it holds at most :data:`WHOLE_NNZ` entries, brings the residual below :data:`TRIAL_DROP`. Collective."""
     if mat.getNullSpace().handle:
         return None, None, False, None
     start = mat.getOwnershipRange()[0]
@@ -192,10 +192,8 @@ def wide(rows, start) -> bool:
 
 def aligned(rows, start) -> bool:
     """Whether new values ``rows`` (as for :func:`holds`) keep what chose ICC(0) for grid-aligned anisotropy: a share
-    of weak couplings of at least :data:`WEAK_SHARE`, positive couplings below :data:`WEIGHT` and a diagonal that
-    spans at most :data:`CONTRAST` on this rank."""
-    return (weak_share(rows, start) >= WEAK_SHARE and positive_weight(rows, start) < WEIGHT
-            and _spread(rows, start) <= CONTRAST)
+    of weak couplings of at least :data:`WEAK_SHARE`, and what :func:`wide` tests."""
+    return weak_share(rows, start) >= WEAK_SHARE and wide(rows, start)
 
 
 def weak_share(rows, start=0) -> float:
