@@ -54,7 +54,12 @@ class WholeChoice:
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
                 kind = self._graph(mat, A, coll, per_row)
-            return kind or self._incomplete(mat, A, coll, per_row, coords is None)
+            kind = kind or self._incomplete(mat, A, coll, per_row, coords is None)
+            if kind is None and coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX:
+                kind = self._banded(A)
+            return kind
+        if coll.size == 1 and (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(A):
+            return "band"                                   # no graph walk (0.5 ms at 1000 rows)
         # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
         if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
             return "cholesky"
@@ -62,6 +67,19 @@ class WholeChoice:
             return "icc"                                                  # the same in any dimension
         dim = coords.shape[1] if coords is not None else self._block_shape(mat, A).dim
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
+
+    def _banded(self, A):
+        """'band' where the reverse Cuthill-McKee order of one rank's matrix ``A`` has a bandwidth of at most
+        :data:`.twolevel.sizing.BAND_WIDTH` (:mod:`.twolevel.band`), :attr:`why` saying so; else None."""
+        from .twolevel import sizing
+        from .twolevel.band import ordering
+
+        width = ordering(A)[2]
+        if width > sizing.BAND_WIDTH:
+            return None
+        self.why = (f"its reverse Cuthill-McKee order has bandwidth {width} (at most {sizing.BAND_WIDTH}): one "
+                    "banded Cholesky factor costs less than the two-level method")
+        return "band"
 
     def _dominant(self, mat, A, coll):
         """'icc' (on several ranks 'bjacobi') where every coupled row is diagonally dominant by at least

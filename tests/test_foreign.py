@@ -219,9 +219,10 @@ def test_default_converges_within_40_iterations_on_foreign_matrices(case, second
     """The defaults by what the graph shows: in 3-D, and in 2-D where rows are as sparse as a 5-point stencil's or
     no coupling is positive (P1 triangles), the first pass's aggregates paired, with the const space (rotated
     anisotropy: test_strongly_rotated_anisotropy_gets_icc_of_the_whole_matrix_on_one_rank; Q1 hexahedra, which as
-    they come take ICC(0): test_wide_rows_get_icc_of_the_whole_matrix, here two-level)."""
-    A, b = CASES[case](12000, 0)                          # above the small-matrix factor's sizes
-    reason, its, relres, ksp, _ = solve(A, b, **({"htp_direct_max": "0"} if case == "fem_hex" else {}))
+    they come take ICC(0): test_wide_rows_get_icc_of_the_whole_matrix, here two-level; sparse 2-D rows at this size
+    take a banded factor: test_the_whole_matrix_factor_is_sized_by_the_problem)."""
+    A, b = CASES[case](12000, 0)              # the two-level method (its banded factor would take most of these)
+    reason, its, relres, ksp, _ = solve(A, b, htp_direct_max="0")
     assert reason > 0 and its <= 40 and relres <= 1e-8, (case, reason, its, relres)
     text = lines(ksp)
     assert "leaves: aggregation" in text and "graph:" in text
@@ -288,12 +289,14 @@ def test_direct_max_zero_keeps_the_two_level_method():
     assert reason > 0 and 2 < its <= 40 and "leaves: aggregation" in lines(ksp)
 
 
-@pytest.mark.parametrize("case, n, kind", [("dmda2d", 7900, "cholesky"), ("dmda2d", 8200, None),
+@pytest.mark.parametrize("case, n, kind", [("dmda2d", 7900, "banded Cholesky"), ("dmda2d", 8200, "banded Cholesky"),
+                                           ("free_surface", 16000, "banded Cholesky"), ("dmda2d", 16900, None),
                                            ("dmda3d", 1000, "ICC(0)"), ("dmda3d", 8000, "ICC(0)"),
                                            ("dmda3d", 9261, None), ("fem_tri", 4000, "ICC(0)")])
 def test_the_whole_matrix_factor_is_sized_by_the_problem(case, n, kind):
-    """sizing.whole_factor: Cholesky for sparse 2-D rows up to DIRECT_MAX, ICC(0) for richer rows or a 3-D graph
-    up to WHOLE_ICC_MAX, the two-level method above."""
+    """sizing.whole_factor: ICC(0) for richer rows or a 3-D graph up to WHOLE_ICC_MAX; a banded Cholesky factor
+    (one rank) where the reverse Cuthill-McKee order's bandwidth is at most BAND_WIDTH (sparse 2-D rows up to about
+    12 500 rows, a free surface's further); the two-level method above."""
     A, b = CASES[case](n, 0)
     reason, its, relres, ksp, _ = solve(A, b)
     assert reason > 0 and relres <= 1e-8
@@ -523,7 +526,7 @@ def test_wide_rows_get_icc_of_the_whole_matrix(tmp_path, monkeypatch):
 def test_grid_aligned_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
     """A 5-point stencil whose strong direction follows the grid (eps 0.001): half its couplings are weak and ICC(0)'s
     trial passes, so one rank takes ICC(0) of the whole matrix and -ksp_view says why; isotropic values on the same
-    pattern make a new analysis (two-level). On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
+    pattern make a new analysis (a banded factor at this size). On two ranks ICC(0) of each rank's block (PCBJACOBI)."""
     from pyamg.gallery import diffusion_stencil_2d, stencil_grid
 
     from petsc_htp.twolevel import incomplete
@@ -539,7 +542,7 @@ def test_grid_aligned_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
     mat.assemble()
     reason, _, relres, _, _ = solve(iso, b, mat=mat, ksp=ksp)
     assert reason > 0 and relres <= 1e-8 and ksp.getPC().getPythonContext().analysis_count == 2
-    assert "leaves: aggregation" in lines(ksp), lines(ksp)
+    assert "banded Cholesky" in lines(ksp), lines(ksp)
     proc = _on_two_ranks(sp.csr_matrix(A), tmp_path / "aligned.petsc")
     assert proc.returncode == 0 and "grid-aligned anisotropy" in proc.stdout, proc.stdout + proc.stderr
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
@@ -547,20 +550,20 @@ def test_grid_aligned_anisotropy_gets_icc_of_the_whole_matrix(tmp_path):
 
 def test_a_chain_gets_a_band_cholesky_factor(tmp_path):
     """A 1-D Laplacian (a chain) above the small sizes, in its own order and numbered at random: one Cholesky factor in
-    reverse Cuthill-McKee order, a band of A's size (the two-level method took 47 ms and 5 iterations at 64 000
-    rows), and -ksp_view says why; on two ranks gathered on each (PCREDUNDANT)."""
+    reverse Cuthill-McKee order, a band of A's size (LAPACK's, bandwidth 1 or 2; the two-level method took 47 ms and
+    5 iterations at 64 000 rows), and -ksp_view says why; on two ranks gathered on each (PCREDUNDANT)."""
     n = 20000
     A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (n, n)).tocsr()
     p = np.random.default_rng(0).permutation(n)
     for M in (A, A[p][:, p].tocsr()):
         reason, its, relres, ksp, _ = solve(M, np.random.default_rng(1).standard_normal(n))
-        factor = ksp.getPC().getPythonContext().setup.pc.getFactorMatrix()
+        band = ksp.getPC().getPythonContext().setup.pc.getPythonContext().band
         assert reason > 0 and its <= 2 and relres <= 1e-8, (its, relres)
-        assert "its graph is a chain" in lines(ksp) and "rcm ordering" in lines(ksp), lines(ksp)
-        assert factor.getInfo()["nz_used"] <= 2 * n
+        assert "its graph is a chain" in lines(ksp) and "reverse Cuthill-McKee order, bandwidth" in lines(ksp)
+        assert band.width <= 2 and band.nbytes <= 8 * 3 * n
     proc = _on_two_ranks(A, tmp_path / "chain.petsc")
     assert proc.returncode == 0 and "its graph is a chain" in proc.stdout, proc.stdout + proc.stderr
-    assert "PCREDUNDANT: cholesky, rcm ordering" in proc.stdout, proc.stdout
+    assert "PCREDUNDANT: LAPACK's band, rcm ordering" in proc.stdout and "bandwidth 1" in proc.stdout, proc.stdout
     rng = np.random.default_rng(2)                   # a random graph of 3.2 entries a row: no chain, though the
     i, j = rng.integers(0, n, (2, 11 * n // 10))      # blocks of its random split over 2 ranks grow as slowly
     W = sp.csr_matrix((np.ones(i.size), (i, j)), (n, n))
@@ -663,7 +666,7 @@ def test_diagonally_dominant_rows_get_icc_of_the_whole_matrix_and_lose_it_with_t
     """Above the small-matrix sizes a matrix whose coupled rows are all diagonally dominant by dominance.MARGIN or
     more (a mass matrix plus a time step's stiffness) takes ICC(0) of the whole matrix, and -ksp_view says why; the
     Dirichlet rows of a DMDA matrix (no couplings) do not count. New values of the same pattern that lose the
-    dominance (the stiffness alone) make a new analysis, the two-level method's, which values that regain it keep
+    dominance (the stiffness alone) make a new analysis, the banded factor's at this size, which values that regain it keep
     (no dominance test per frame). On two ranks ICC(0) of each rank's block (PCBJACOBI). The margin is that of the
     least dominant row."""
     from petsc_htp.twolevel.dominance import MARGIN, margin
@@ -679,7 +682,7 @@ def test_diagonally_dominant_rows_get_icc_of_the_whole_matrix_and_lose_it_with_t
         mat.setValuesCSR(values.indptr, values.indices, values.data)
         mat.assemble()
         reason, its, relres, _, _ = solve(values, b, mat=mat, ksp=ksp)
-        assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "leaves: aggregation" in lines(ksp)
+        assert reason > 0 and relres <= 1e-8 and ctx.analysis_count == 2 and "banded Cholesky" in lines(ksp)
     proc = _on_two_ranks(A, tmp_path / "dominant.petsc")
     assert proc.returncode == 0 and "diagonally dominant" in proc.stdout, proc.stdout + proc.stderr
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout, proc.stdout
@@ -701,7 +704,7 @@ def test_a_dense_row_is_ordered_last_and_keeps_the_coarse_lu(tmp_path):
     reason, its, relres, ksp, _ = solve(A, np.append(b, 1.0))
     st = ksp.getPC().getPythonContext().analysis.st
     assert reason > 0 and relres <= 1e-8 and st.dense and ksp.getPC().getPythonContext().analysis.ops._rap
-    its_K = solve(K, b)[1]
+    its_K = solve(K, b, htp_direct_max="0")[1]                      # the two-level method, not its banded factor
     assert its <= its_K + 3 and not sizing.metis_ordered("lu", 2, 10 ** 6, 2, block=1, dense=True), (its, its_K)
     viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"), comm=PETSc.COMM_SELF)
     ksp.getPC().getPythonContext().setup.coarse.pc.view(viewer)
@@ -756,7 +759,7 @@ def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
 
     side = int(round(n ** 0.5))
     A0, b = foreign.dmda(2, side, 1e3, 0)
-    reason, its, _, ksp, mat = solve(A0, b)
+    reason, its, _, ksp, mat = solve(A0, b, htp_direct_max="0")      # the two-level method at any size
     ctx = ksp.getPC().getPythonContext()
     assert ctx.analysis_count == 1 and reason > 0
     assert ctx.analysis.st.stride == max(1, A0.shape[0] // WEAK_ROWS)

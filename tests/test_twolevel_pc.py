@@ -162,7 +162,9 @@ def test_a_pmat_other_than_the_amat_takes_the_balanced_form():
     P, b = CASES["dmda2d"](12000, 0)
     A = (P + 0.01 * sp.diags(P.diagonal())).tocsr()
     amat, pmat = petsc_mat(A, null=False), petsc_mat(P, null=False)
+    PETSc.Options("pm_")["htp_direct_max"] = 0             # the two-level method, not P's banded factor
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix("pm_")
     ksp.setOperators(amat, pmat)
     ksp.setType("cg")
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
@@ -174,6 +176,7 @@ def test_a_pmat_other_than_the_amat_takes_the_balanced_form():
     ksp.solve(rhs, x)
     relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
     assert ksp.getConvergedReason() > 0 and relres <= 1.01e-8, (ksp.getConvergedReason(), ksp.its, relres)
+    PETSc.Options("pm_").delValue("htp_direct_max")
     assert ksp.getPC().getPythonContext().setup.forms.form("cg") == "balanced"
 
 

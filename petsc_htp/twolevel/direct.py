@@ -28,7 +28,7 @@ from .inner import configured_pc, set_up
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
                    "pc_factor_shift_type": "positive_definite"},
-           "band": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "rcm", "pc_factor_shift_type": "nonzero"}}
+           "band": {"pc_type": "python", "pc_python_type": "petsc_htp.twolevel.band.BandPC"}}   # LAPACK's band
 BLOCKS = {"pc_type": "bjacobi", "sub_pc_type": "icc", "sub_pc_factor_shift_type": "positive_definite"}
 OVERLAP = 4             # 'asm': layers each rank's block grows by (rotated anisotropy on 2 ranks, 262 144 rows: 1, 2, 4
 # and 8 layers 141, 114, 99 and 87 CG iterations on the 30-degree case, where each block alone took 241)
@@ -113,10 +113,21 @@ class DirectPC:
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)
             self.ordering = None if self.kind in BLOCKED else PETSc.Options(self.prefix).getString(
-                ("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind][key])
+                ("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind].get(key, "rcm"))
         else:
             self.pc.setOperators(target, target)
-        set_up(self.pc, self.prefix, self.rest)
+        try:
+            set_up(self.pc, self.prefix, self.rest)
+        except PETSc.Error:
+            if self._band() is None or self._band().info <= 0 or self.ranks > 1:
+                raise
+            if not every:                                      # a null direction not grounded, or indefinite
+                return self.numeric(rows, density, keep_space, every=True)
+            raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its banded Cholesky "
+                             f"factor has a pivot that is not positive in {rows.shape[0]} rows: the matrix is "
+                             "indefinite") from None
+        if self._band() is not None and self._band().null_row >= 0 and self.ranks == 1 and not every:
+            return self.numeric(rows, density, keep_space, every=True)         # a null direction not grounded
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
         if self.ranks > 1 and self.kind not in BLOCKED:   # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
@@ -127,6 +138,10 @@ class DirectPC:
             if negative:
                 raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
                                  f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+
+    def _band(self):
+        """The banded factor's context (:class:`.band.BandPC`) where it is the factor on this rank, else None."""
+        return self.pc.getPythonContext() if self.pc.getType() == "python" else None
 
     def _adopted(self, target):
         """(the trial's PC, no options left) where it may serve as the factor: ICC(0) of ``target`` itself, on one
@@ -199,12 +214,14 @@ class DirectPC:
             return int(8 * sub[0].getPC().getFactorMatrix().getInfo()["nz_used"])
         if self.ranks > 1:
             return self.gathered
-        return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
+        band = self._band()
+        return band.band.nbytes if band is not None else int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
         n = self.mat.getSize()[0]
-        what = ("one sparse Cholesky factor (one iteration)" if self.kind in ("cholesky", "band") else
+        what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
+                "one banded Cholesky factor (one iteration)" if self.kind == "band" else
                 "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
         if self.kind in BLOCKED:
             what = ("ICC(0) of each rank's diagonal block (PCBJACOBI)" if self.kind == "bjacobi" else
@@ -212,12 +229,15 @@ class DirectPC:
             where = f" (options -{self.prefix}sub_*)"
             memory = f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
         elif self.ranks > 1:
+            factor = "LAPACK's band" if self.kind == "band" else FACTORS[self.kind]["pc_type"]
             where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
-                     f"{FACTORS[self.kind]['pc_type']}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
+                     f"{factor}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
             memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
         else:
-            where = (f" ({self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering; "
-                     f"options -{self.prefix}*)")
+            band = self._band()
+            what_factor = (band.describe() if band is not None else
+                           f"{self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering")
+            where = f" ({what_factor}; options -{self.prefix}*)"
             memory = f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"
         return [f"whole matrix: {what}; {n} rows, {self.why or 'within the sizes where it is cheapest'}{where}"
                 + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),

@@ -1,0 +1,109 @@
+"""One Cholesky factor of the whole matrix as a band: rows in reverse Cuthill-McKee order, factored by LAPACK's
+banded Cholesky (``dpbtrf``), a PETSc PC of its own (:class:`BandPC`, PCPYTHON).
+
+Its work is n w^2 for bandwidth w, against PETSc's sparse Cholesky in nested-dissection order, whose fill is less but
+whose scalar kernels are slower: a 2-D 5-point matrix of 2 025 rows (w = 45) took 1.7 against 2.4 ms, of 7 921 rows
+(w = 89) 8 against 12, a free surface of 16 087 rows (w = 91) 18 against the two-level method's 28 (one rank,
+``results/band-20261127``). A chain's band (w = 1 or 2) is as cheap as its rows.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import lapack
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+NULL_PIVOT = 1e-8      # a pivot whose square is below this share of its row's diagonal entry: a null direction (grounded:
+#                        a rank-one change, where the matrix was only ill-conditioned: a few CG iterations more)
+
+
+def ordering(rows):
+    """(reverse Cuthill-McKee permutation, its inverse, bandwidth) of the symmetric pattern of CSR ``rows``."""
+    n = rows.shape[0]
+    perm = reverse_cuthill_mckee(rows, symmetric_mode=True).astype(np.int64)
+    inverse = np.empty(n, dtype=np.int64)
+    inverse[perm] = np.arange(n)
+    lengths = np.diff(rows.indptr)
+    width = int(np.abs(np.repeat(inverse, lengths) - inverse[rows.indices]).max()) if rows.nnz else 0
+    return perm, inverse, width
+
+
+class Band:
+    """The banded Cholesky factor of one pattern: made from CSR ``rows`` (symmetric; its lower triangle in the new
+    order is read), then :meth:`factor` for each set of values and :meth:`solve`."""
+
+    def __init__(self, rows):
+        n = rows.shape[0]
+        self.perm, inverse, self.width = ordering(rows)
+        self.indptr, self.indices = rows.indptr.copy(), rows.indices.copy()
+        qi, qj = np.repeat(inverse, np.diff(rows.indptr)), inverse[rows.indices]
+        self.lower = qi >= qj                                   # entries in the lower band of the new order
+        self.at = ((qi - qj) + qj * (self.width + 1))[self.lower]   # ab[i - j, j], Fortran order (LAPACK's lower form)
+        self.diag_at = np.arange(n) * (self.width + 1)
+        self.shape, self.c = (self.width + 1, n), None
+
+    def same(self, rows) -> bool:
+        """Whether CSR ``rows`` has this pattern."""
+        return (rows.shape[0] == self.shape[1] and np.array_equal(rows.indptr, self.indptr)
+                and np.array_equal(rows.indices, self.indices))
+
+    def factor(self, data) -> tuple:
+        """Factor the values ``data`` (in the pattern's CSR order). Returns (LAPACK's info: k > 0 where the k-th pivot
+        in the new order is not positive, the first row, in the original order, whose pivot squared is below
+        :data:`NULL_PIVOT` of its diagonal entry, or -1)."""
+        ab = np.zeros(self.shape[0] * self.shape[1])
+        ab[self.at] = data[self.lower]
+        diag = ab[self.diag_at]
+        self.c, info = lapack.dpbtrf(ab.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
+        if info > 0:
+            return info, -1
+        small = np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * np.abs(diag))
+        return 0, int(self.perm[small[0]]) if small.size else -1
+
+    def solve(self, b, out):
+        """out = A^-1 b."""
+        x, _ = lapack.dpbtrs(self.c, b[self.perm], lower=1)
+        out[self.perm] = x
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the factor."""
+        return 8 * self.shape[0] * self.shape[1]
+
+
+class BandPC:
+    """PCPYTHON context: the banded Cholesky factor of the PC's operator (a sequential AIJ matrix, or one rank's
+    matrix), e.g. ``-pc_type python -pc_python_type petsc_htp.twolevel.band.BandPC``. A pivot that is not positive
+    is an error naming the matrix indefinite or singular (:attr:`info`, LAPACK's, says which); :attr:`null_row`
+    is a row whose pivot vanished (-1: none)."""
+
+    def __init__(self):
+        self.band, self.info, self.null_row = None, 0, -1
+
+    def setUp(self, pc):
+        """Order (on a new pattern) and factor the operator's values."""
+        from ..petscmat import local_rows
+
+        with local_rows(pc.getOperators()[1]) as rows:
+            if self.band is None or not self.band.same(rows):
+                self.band = Band(rows)
+            self.info, self.null_row = self.band.factor(rows.data)
+        if self.info > 0:
+            raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (reverse Cuthill-McKee "
+                             "order) is not positive: the matrix is not positive definite (indefinite, or singular "
+                             "with no null component grounded)")
+
+    def apply(self, pc, x, y):
+        """y = A^-1 x."""
+        self.band.solve(x.array_r, y.array_w)
+
+    applyTranspose = apply
+
+    def describe(self) -> str:
+        """The factor in words."""
+        b = self.band
+        return (f"banded Cholesky (LAPACK dpbtrf) in reverse Cuthill-McKee order, bandwidth {b.width}, "
+                f"{b.shape[1]} rows" if b is not None else "banded Cholesky (not set up)")
+
+    def view(self, pc, viewer):
+        """-ksp_view's line."""
+        viewer.printfASCII(f"  {self.describe()}\n")

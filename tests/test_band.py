@@ -1,0 +1,114 @@
+"""The banded Cholesky factor (petsc_htp.twolevel.band): as a PETSc PC of its own, and as HTPPC's factor of the
+whole matrix where the reverse Cuthill-McKee bandwidth is small (sizing.BAND_WIDTH, one rank)."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from petsc4py import PETSc
+
+from petsc_htp.scenes import foreign
+from petsc_htp.twolevel import sizing
+from petsc_htp.twolevel.band import Band, ordering
+from test_foreign import lines, solve
+
+
+def _ksp(A, ksp_type, prefix):
+    """A KSP of ``ksp_type`` with BandPC by its options under ``prefix`` on the AIJ copy of ``A``."""
+    db = PETSc.Options(prefix)
+    for k, v in {"ksp_type": ksp_type, "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 50,
+                 "pc_type": "python", "pc_python_type": "petsc_htp.twolevel.band.BandPC"}.items():
+        db.setValue(k, v)
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                              A.data), comm=PETSc.COMM_SELF)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(mat, mat)
+    ksp.setFromOptions()
+    return ksp, mat
+
+
+@pytest.mark.parametrize("ksp_type", ["cg", "gmres", "minres"])
+def test_band_pc_solves_in_one_iteration_and_keeps_its_order_for_new_values(ksp_type):
+    """Any KSP: one iteration to 1e-8 on a DMDA-style matrix numbered at random; new values of the same pattern keep
+    the order (the same Band), a new pattern makes a new one."""
+    A, b = foreign.dmda(2, 40, 1e3, 0)
+    p = np.random.default_rng(0).permutation(A.shape[0])
+    A, b = sp.csr_matrix(A[p][:, p]), b[p]
+    A.sort_indices()
+    ksp, mat = _ksp(A, ksp_type, f"band_{ksp_type}_")
+    x, rhs = mat.createVecs()
+    rhs.setArray(b)
+    ksp.solve(rhs, x)
+    ctx = ksp.getPC().getPythonContext()
+    relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
+    assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 1 and relres <= 1e-8
+    assert ctx.band.width <= 45 and ctx.band.width == ordering(A)[2]
+    band = ctx.band
+    mat.scale(2.0)
+    ksp.setOperators(mat, mat)
+    ksp.solve(rhs, x)
+    assert ctx.band is band and np.linalg.norm(b - 2 * A @ x.getArray()) <= 1e-8 * np.linalg.norm(b)
+    q = np.random.default_rng(1).permutation(A.shape[0])     # the same size, another pattern
+    B = sp.csr_matrix(A[q][:, q])
+    B.sort_indices()
+    mat2 = PETSc.Mat().createAIJ(B.shape, csr=(B.indptr.astype(PETSc.IntType), B.indices.astype(PETSc.IntType),
+                                               B.data), comm=PETSc.COMM_SELF)
+    ksp.setOperators(mat2, mat2)
+    ksp.solve(rhs, x)
+    assert ctx.band is not band and ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 1
+
+
+def test_band_pc_names_an_indefinite_matrix():
+    """A pivot that is not positive is an error that says so (PETSc.Error with the cause attached)."""
+    A = sp.diags([np.ones(99), np.r_[2.0 * np.ones(50), -2.0 * np.ones(50)], np.ones(99)], [-1, 0, 1]).tocsr()
+    ksp, mat = _ksp(A, "cg", "band_bad_")
+    x, rhs = mat.createVecs()
+    rhs.set(1.0)
+    with pytest.raises(PETSc.Error) as err:
+        ksp.solve(rhs, x)
+    assert "not positive definite" in str(err.value.__cause__ or err.value)
+
+
+def test_band_factors_the_lower_triangle_in_its_order():
+    """Band.solve is A^-1 to rounding, and its pivots show a singular matrix's null direction (null_row)."""
+    A, _ = foreign.neumann(20)
+    A = sp.csr_matrix(A)
+    band = Band(A)
+    info, null_row = band.factor(A.data)
+    assert info > 0 or null_row >= 0                      # singular: the last pivot vanishes or goes negative
+    shifted = (A + sp.identity(A.shape[0])).tocsr()
+    shifted.sort_indices()
+    band = Band(shifted)
+    assert band.factor(shifted.data) == (0, -1)
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    x = np.empty_like(b)
+    band.solve(b, x)
+    assert np.linalg.norm(shifted @ x - b) <= 1e-12 * np.linalg.norm(b)
+
+
+def test_a_strip_and_a_small_grid_take_the_banded_factor_and_a_wide_grid_does_not():
+    """HTPPC as it comes: a strip of 16 x 3 000 cells (48 000 rows, far above the small sizes) and a 2-D DMDA matrix of
+    10 000 rows get one banded Cholesky factor, one iteration, and -ksp_view names the bandwidth; a 2-D grid whose
+    bandwidth passes sizing.BAND_WIDTH keeps the two-level method."""
+    line = [sp.diags([-np.ones(k - 1), 2 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1]) for k in (16, 3000)]
+    strip = sp.kronsum(line[0], line[1]).tocsr()
+    square, b = foreign.dmda(2, 100, 1e3, 0)
+    for A, rhs in ((strip, np.ones(strip.shape[0])), (sp.csr_matrix(square), b)):
+        reason, its, relres, ksp, _ = solve(A, rhs)
+        assert reason > 0 and its <= 1 and relres <= 1e-8, (its, relres)
+        assert "one banded Cholesky factor" in lines(ksp) and f"(at most {sizing.BAND_WIDTH})" in lines(ksp)
+    wide, b = foreign.dmda(2, sizing.BAND_WIDTH + 20, 1e3, 0)
+    reason, its, relres, ksp, _ = solve(wide, b)
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
+
+
+def test_a_null_direction_that_is_no_constant_is_grounded():
+    """D A D of a Neumann matrix (D from 1e-2 to 1e2) with nothing attached: its row sums do not vanish, so no
+    component is grounded first; the banded factor's vanishing pivot shows the null direction, every component is
+    grounded, and CG on the consistent system converges."""
+    A, _ = foreign.neumann(30)
+    d = 10.0 ** np.random.default_rng(0).uniform(-2, 2, A.shape[0])
+    S = sp.csr_matrix(sp.diags(d) @ A @ sp.diags(d))
+    b = S @ np.random.default_rng(1).standard_normal(A.shape[0])
+    reason, its, relres, ksp, _ = solve(S, b)
+    assert reason > 0 and relres <= 1e-8 and its <= 5, (reason, its, relres)
+    assert "one banded Cholesky factor" in lines(ksp) and "1 null component(s) grounded" in lines(ksp)
