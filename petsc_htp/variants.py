@@ -92,7 +92,7 @@ class TwoLevel:
             from .twolevel.direct import DirectPC
 
             c = self.choice
-            setup = DirectPC(mat, A, kind, self.prefix + "htp_", c.why, c.holds, c.take_trial())
+            setup = DirectPC(mat, A, kind, self.prefix + "htp_", c.why, c.holds, c.take_made())
         else:
             from .twolevel.composed import TwoLevelPC
 

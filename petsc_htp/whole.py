@@ -18,16 +18,17 @@ from .collective import Collective
 
 class WholeChoice:
     """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
-    alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_trial` (the ICC(0) trial's set-up
-    PC, once)."""
+    alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_made` (what the choice made
+    that the factor takes, once)."""
 
     def __init__(self, opts):
-        self.opts, self.why, self.holds, self.trial_pc = opts, None, None, None
+        self.opts, self.why, self.holds, self.made = opts, None, None, None
 
-    def take_trial(self):
-        """The ICC(0) trial's PC, set up on the whole matrix (one rank), or None; handed over once."""
-        pc, self.trial_pc = self.trial_pc, None
-        return pc
+    def take_made(self):
+        """What the choice made that the factor takes, or None, handed over once: the ICC(0) trial's PC, set up on the
+        whole matrix (one rank), or the banded factor's analysis (:class:`.twolevel.band.Band`)."""
+        made, self.made = self.made, None
+        return made
 
     def kind(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``; on several ranks gathered on
@@ -72,11 +73,13 @@ class WholeChoice:
         """'band' where the reverse Cuthill-McKee order of one rank's matrix ``A`` has a bandwidth of at most
         :data:`.twolevel.sizing.BAND_WIDTH` (:mod:`.twolevel.band`), :attr:`why` saying so; else None."""
         from .twolevel import sizing
-        from .twolevel.band import ordering
+        from .twolevel.band import Band, ordering
 
-        width = ordering(A)[2]
+        order = ordering(A)
+        width = order[3]
         if width > sizing.BAND_WIDTH:
             return None
+        self.made = Band(A, order)
         self.why = (f"its reverse Cuthill-McKee order has bandwidth {width} (at most {sizing.BAND_WIDTH}): one "
                     "banded Cholesky factor costs less than the two-level method")
         return "band"
@@ -124,7 +127,7 @@ class WholeChoice:
         (:func:`.twolevel.incomplete.why_icc`), else None (collective)."""
         from .twolevel import incomplete
 
-        self.why, self.holds, grown, self.trial_pc = incomplete.why_icc(mat, A, per_row, coll, bare)
+        self.why, self.holds, grown, self.made = incomplete.why_icc(mat, A, per_row, coll, bare)
         if self.why is None:
             return None
         return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"

@@ -12,32 +12,41 @@ import numpy as np
 from scipy.linalg import lapack
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
+#                        rows, more than a factor of that bandwidth)
 NULL_PIVOT = 1e-8      # a pivot whose square is below this share of its row's diagonal entry: a null direction (grounded:
 #                        a rank-one change, where the matrix was only ill-conditioned: a few CG iterations more)
 
 
-def ordering(rows):
-    """(reverse Cuthill-McKee permutation, its inverse, bandwidth) of the symmetric pattern of CSR ``rows``."""
+def ordering(rows) -> tuple:
+    """(permutation of the symmetric pattern of CSR ``rows``, each stored entry's row and column in that order,
+    bandwidth): the rows' own order where its bandwidth is at most :data:`NATURAL_WIDTH` or no more than reverse
+    Cuthill-McKee's, else RCM's."""
     n = rows.shape[0]
-    perm = reverse_cuthill_mckee(rows, symmetric_mode=True).astype(np.int64)
-    inverse = np.empty(n, dtype=np.int64)
-    inverse[perm] = np.arange(n)
-    lengths = np.diff(rows.indptr)
-    width = int(np.abs(np.repeat(inverse, lengths) - inverse[rows.indices]).max()) if rows.nnz else 0
-    return perm, inverse, width
+    qi, qj = np.repeat(np.arange(n, dtype=rows.indices.dtype), np.diff(rows.indptr)), rows.indices
+    natural = int(np.abs(qi - qj).max()) if rows.nnz else 0
+    if natural <= NATURAL_WIDTH:
+        return np.arange(n), qi, qj, natural
+    perm = reverse_cuthill_mckee(rows, symmetric_mode=True)
+    inverse = np.empty(n, dtype=perm.dtype)
+    inverse[perm] = np.arange(n, dtype=perm.dtype)
+    ri, rj = inverse[qi], inverse[qj]
+    width = int(np.abs(ri - rj).max())
+    return (np.arange(n), qi, qj, natural) if width >= natural else (perm, ri, rj, width)
 
 
 class Band:
     """The banded Cholesky factor of one pattern: made from CSR ``rows`` (symmetric; its lower triangle in the new
-    order is read), then :meth:`factor` for each set of values and :meth:`solve`."""
+    order is read) and its :func:`ordering` where known, then :meth:`factor` for each set of values and
+    :meth:`solve`."""
 
-    def __init__(self, rows):
+    def __init__(self, rows, order=None):
         n = rows.shape[0]
-        self.perm, inverse, self.width = ordering(rows)
+        self.perm, qi, qj, self.width = order or ordering(rows)
         self.indptr, self.indices = rows.indptr.copy(), rows.indices.copy()
-        qi, qj = np.repeat(inverse, np.diff(rows.indptr)), inverse[rows.indices]
-        self.lower = qi >= qj                                   # entries in the lower band of the new order
-        self.at = ((qi - qj) + qj * (self.width + 1))[self.lower]   # ab[i - j, j], Fortran order (LAPACK's lower form)
+        self.lower = np.flatnonzero(qi >= qj)                  # entries in the lower band of the new order
+        qi, qj = qi[self.lower].astype(np.int64), qj[self.lower].astype(np.int64)
+        self.at = (qi - qj) + qj * (self.width + 1)            # ab[i - j, j], Fortran order (LAPACK's lower form)
         self.diag_at = np.arange(n) * (self.width + 1)
         self.shape, self.c = (self.width + 1, n), None
 

@@ -23,6 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
+from .band import Band
 from .inner import configured_pc, set_up
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
@@ -59,7 +60,8 @@ class DirectPC:
     rows : scipy.sparse.csr_matrix
         This rank's rows (the analysed pattern).
     kind : str
-        cholesky, band (Cholesky in reverse Cuthill-McKee order: a chain) or icc (:data:`FACTORS`), or bjacobi or asm
+        cholesky, band (LAPACK's banded Cholesky in reverse Cuthill-McKee order, :mod:`.band`) or icc
+        (:data:`FACTORS`), or bjacobi or asm
         (ICC(0) of each rank's block, grown for asm: :func:`factor_options`).
     prefix : str
         Options prefix of the factor: ``<prefix>leaf_``.
@@ -72,17 +74,18 @@ class DirectPC:
         values that lose it call for a new analysis. These choices were made for a matrix that is not singular
         (dominant rows; rows that sum to a share of their diagonal; no null space and row sums that do not all
         vanish), so their factor skips the grounding test (0.3 s at 1M rows).
-    trial : petsc4py.PETSc.PC, optional
-        The ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one rank): applied as it is
-        where no option is set under the prefix (at 64 000 rows its factor cost 16 ms of Q1 hexahedra's setup).
+    made : petsc4py.PETSc.PC or .band.Band, optional
+        What the choice made: the ICC(0) trial's PC, set up on the whole matrix (:func:`.incomplete.trial_drop`, one
+        rank), applied as it is where no option is set under the prefix (at 64 000 rows its factor cost 16 ms of Q1
+        hexahedra's setup); or the banded factor's order (reverse Cuthill-McKee's: 5 ms for a strip of 65 536 rows).
     """
 
     whole = True            # one factor of the whole matrix: no leaves, so the rows' split over the ranks costs nothing
 
-    def __init__(self, mat, rows, kind, prefix, why=None, holds=None, trial=None):
+    def __init__(self, mat, rows, kind, prefix, why=None, holds=None, made=None):
         t0 = time.perf_counter()
         self.mat, self.kind, self.prefix, self.why, self.holds = mat, kind, prefix + "leaf_", why, holds
-        self.trial = trial
+        self.trial, self.order = (None, made) if isinstance(made, Band) else (made, None)
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
         self.G = self.pc = None
@@ -109,6 +112,8 @@ class DirectPC:
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
+            if self.order is not None and self._band() is not None:
+                self._band().band, self.order = self.order, None        # the choice's order (one rank)
             if self.ranks > 1 and self.kind not in BLOCKED and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)

@@ -142,12 +142,13 @@ def null_by_rowsums(rowsum, diag, comp_of_row, n_comp, reduce_max=None) -> np.nd
 
     ``reduce_max`` (an elementwise maximum over MPI ranks) makes it collective.
     """
-    worst = np.zeros(n_comp)
-    np.maximum.at(worst, comp_of_row, np.abs(rowsum))
     top = np.array([np.abs(diag).max(initial=0.0)])
     if reduce_max is not None:
-        worst, top = reduce_max(worst), reduce_max(top)
-    return worst <= NULL_TOL * top[0]
+        top = reduce_max(top)
+    above = np.bincount(comp_of_row[np.abs(rowsum) > NULL_TOL * top[0]], minlength=n_comp).astype(float)
+    if reduce_max is not None:                   # rows above the tolerance per component (np.maximum.at: 3 ms at 65k)
+        above = reduce_max(above)
+    return above == 0
 
 
 def null_regions(A, regions) -> np.ndarray:
