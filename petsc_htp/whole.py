@@ -70,18 +70,20 @@ class WholeChoice:
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
 
     def _banded(self, A):
-        """'band' where the reverse Cuthill-McKee order of one rank's matrix ``A`` has a bandwidth of at most
-        :data:`.twolevel.sizing.BAND_WIDTH` (:mod:`.twolevel.band`), :attr:`why` saying so; else None."""
+        """'band' where one rank's matrix ``A`` has a bandwidth of at most :data:`.twolevel.sizing.BAND_WIDTH` in its
+        own order or, up to :data:`.twolevel.sizing.BAND_RCM_MAX` rows, in reverse Cuthill-McKee's
+        (:func:`.twolevel.band.ordering`), :attr:`why` saying so; else None."""
         from .twolevel import sizing
         from .twolevel.band import Band, ordering
 
-        order = ordering(A)
+        order = ordering(A, reorder=A.shape[0] <= sizing.BAND_RCM_MAX)
         width = order[3]
         if width > sizing.BAND_WIDTH:
             return None
         self.made = Band(A, order)
-        self.why = (f"its reverse Cuthill-McKee order has bandwidth {width} (at most {sizing.BAND_WIDTH}): one "
-                    "banded Cholesky factor costs less than the two-level method")
+        own = np.array_equal(order[0], np.arange(A.shape[0]))
+        self.why = (f"{'its own' if own else 'its reverse Cuthill-McKee'} order has bandwidth {width} (at most "
+                    f"{sizing.BAND_WIDTH}): one banded Cholesky factor costs less than the two-level method")
         return "band"
 
     def _dominant(self, mat, A, coll):

@@ -86,16 +86,25 @@ def test_band_factors_the_lower_triangle_in_its_order():
 
 
 def test_a_strip_and_a_small_grid_take_the_banded_factor_and_a_wide_grid_does_not():
-    """HTPPC as it comes: a strip of 16 x 3 000 cells (48 000 rows, far above the small sizes) and a 2-D DMDA matrix of
-    10 000 rows get one banded Cholesky factor, one iteration, and -ksp_view names the bandwidth; a 2-D grid whose
-    bandwidth passes sizing.BAND_WIDTH keeps the two-level method."""
-    line = [sp.diags([-np.ones(k - 1), 2 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1]) for k in (16, 3000)]
-    strip = sp.kronsum(line[0], line[1]).tocsr()
+    """HTPPC as it comes: a strip of 16 x 3 000 cells numbered across (48 000 rows, far above the small sizes; its own
+    order), one of 16 x 1 250 numbered along (20 000 rows: reverse Cuthill-McKee's order) and a 2-D DMDA matrix of
+    10 000 rows get one banded Cholesky factor, one iteration, and -ksp_view names the order and the bandwidth; a 2-D
+    grid whose bandwidth passes sizing.BAND_WIDTH keeps the two-level method, and so does the strip of 48 000 rows
+    numbered along (past sizing.BAND_RCM_MAX only the rows' own order is tried)."""
+    def line(k):
+        return sp.diags([-np.ones(k - 1), 2 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1])
+
+    across, along = sp.kronsum(line(16), line(3000)).tocsr(), sp.kronsum(line(1250), line(16)).tocsr()
     square, b = foreign.dmda(2, 100, 1e3, 0)
-    for A, rhs in ((strip, np.ones(strip.shape[0])), (sp.csr_matrix(square), b)):
+    for A, rhs, order in ((across, np.ones(across.shape[0]), "its own order has bandwidth 16"),
+                          (along, np.ones(along.shape[0]), "its reverse Cuthill-McKee order has bandwidth 1"),
+                          (sp.csr_matrix(square), b, "bandwidth 100")):
         reason, its, relres, ksp, _ = solve(A, rhs)
         assert reason > 0 and its <= 1 and relres <= 1e-8, (its, relres)
-        assert "one banded Cholesky factor" in lines(ksp) and f"(at most {sizing.BAND_WIDTH})" in lines(ksp)
+        assert "one banded Cholesky factor" in lines(ksp) and order in lines(ksp), lines(ksp)
+    long_along = sp.kronsum(line(3000), line(16)).tocsr()
+    reason, its, relres, ksp, _ = solve(long_along, np.ones(long_along.shape[0]))
+    assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)
     wide, b = foreign.dmda(2, sizing.BAND_WIDTH + 20, 1e3, 0)
     reason, its, relres, ksp, _ = solve(wide, b)
     assert reason > 0 and relres <= 1e-8 and "leaves: aggregation" in lines(ksp)

@@ -18,14 +18,14 @@ NULL_PIVOT = 1e-8      # a pivot whose square is below this share of its row's d
 #                        a rank-one change, where the matrix was only ill-conditioned: a few CG iterations more)
 
 
-def ordering(rows) -> tuple:
+def ordering(rows, reorder=True) -> tuple:
     """(permutation of the symmetric pattern of CSR ``rows``, each stored entry's row and column in that order,
     bandwidth): the rows' own order where its bandwidth is at most :data:`NATURAL_WIDTH` or no more than reverse
-    Cuthill-McKee's, else RCM's."""
+    Cuthill-McKee's, or where not ``reorder``; else RCM's."""
     n = rows.shape[0]
     qi, qj = np.repeat(np.arange(n, dtype=rows.indices.dtype), np.diff(rows.indptr)), rows.indices
     natural = int(np.abs(qi - qj).max()) if rows.nnz else 0
-    if natural <= NATURAL_WIDTH:
+    if natural <= NATURAL_WIDTH or not reorder:
         return np.arange(n), qi, qj, natural
     perm = reverse_cuthill_mckee(rows, symmetric_mode=True)
     inverse = np.empty(n, dtype=perm.dtype)

@@ -96,7 +96,8 @@ COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggre
 COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
 COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows from which GAMG serves
 BAND_WIDTH = 112                            # one rank: RCM bandwidth up to which LAPACK's band factor serves
-BAND_CHECK_MAX = 65536                      # ... rows up to which a bare matrix's bandwidth is measured (RCM: 5 ms)
+BAND_RCM_MAX = 32768                        # ... rows up to which a bare matrix's RCM order is tried (2.5 ms) ...
+BAND_CHECK_MAX = 262144                     # ... and its own order (0.5 ms at 65 536 rows: a strip numbered across)
 LINEAR_GROWTH = 1.25                        # ball growth exponent below which a graph is a chain (chain) ...
 CHAIN_ROW = 3.5                             # ... whose rows hold at most this many stored entries on average
 
