@@ -67,8 +67,9 @@ HELP = {
                   "for a bare matrix with richer rows or a 3-D graph ICC(0) up to 8000, and at any size ICC(0) "
                   "(of each rank's block on several ranks) for diagonally dominant rows or, bare, a graph that is no "
                   "mesh, and where a trial confirms it for anisotropic (rotated or along the grid), wide or shifted "
-                  "rows; on one rank one banded Cholesky factor (LAPACK, RCM order) where the bandwidth is at most "
-                  "112, up to 8000 rows or, bare, 65536 (a chain's at any size, on several ranks gathered); "
+                  "rows; on one rank one banded Cholesky factor (LAPACK) where the bandwidth is at most 112, up to "
+                  "8000 rows or, bare, in RCM order up to 32768 and in its own up to 262144 (a chain's at any size, "
+                  "on several ranks gathered); "
                   "n >= 0: sparse Cholesky up to n rows; 0: "
                   "never); whatever the options where a rank owns no rows, up to 8000 rows",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",

@@ -5,9 +5,11 @@ Small matrices get the factor their size and rows call for (:func:`.twolevel.siz
 ICC(0) of the whole matrix (on several ranks of each rank's block) where the rows are diagonally dominant
 (:mod:`.twolevel.dominance`), where the graph is no mesh (:mod:`.twolevel.spread`), or where the rows are strongly
 anisotropic, wide, anisotropic along the grid or shifted and a short trial confirms it (:mod:`.twolevel.incomplete`);
-and one Cholesky factor in reverse Cuthill-McKee order where the graph is a chain (a 1-D problem's), whose factor is
-then a band that holds no more than A: a chain of 64 000 rows took 47 ms (5 iterations) in the two-level method, 15 ms
-so (1 iteration; ``results/wide-20261127``).
+one banded Cholesky factor (LAPACK's, :mod:`.twolevel.band`) where the graph is a chain (a 1-D problem's), whose band
+holds no more than A: a chain of 64 000 rows took 47 ms (5 iterations) in the two-level method, 15 ms as a band
+(1 iteration; ``results/wide-20261127``); and on one rank the same banded factor wherever the bandwidth is at most
+:data:`.twolevel.sizing.BAND_WIDTH` in the rows' own order or reverse Cuthill-McKee's (small matrices, thin 2-D
+domains, strips: ``results/band-20261127``).
 """
 from __future__ import annotations
 

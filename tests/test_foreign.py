@@ -559,7 +559,7 @@ def test_a_chain_gets_a_band_cholesky_factor(tmp_path):
         reason, its, relres, ksp, _ = solve(M, np.random.default_rng(1).standard_normal(n))
         band = ksp.getPC().getPythonContext().setup.pc.getPythonContext().band
         assert reason > 0 and its <= 2 and relres <= 1e-8, (its, relres)
-        assert "its graph is a chain" in lines(ksp) and "reverse Cuthill-McKee order, bandwidth" in lines(ksp)
+        assert "its graph is a chain" in lines(ksp) and "order, bandwidth" in lines(ksp)
         assert band.width <= 2 and band.nbytes <= 8 * 3 * n
     proc = _on_two_ranks(A, tmp_path / "chain.petsc")
     assert proc.returncode == 0 and "its graph is a chain" in proc.stdout, proc.stdout + proc.stderr

@@ -97,9 +97,9 @@ class BandPC:
                 self.band = Band(rows)
             self.info, self.null_row = self.band.factor(rows.data)
         if self.info > 0:
-            raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (reverse Cuthill-McKee "
-                             "order) is not positive: the matrix is not positive definite (indefinite, or singular "
-                             "with no null component grounded)")
+            raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (in its band's order) "
+                             "is not positive: the matrix is not positive definite (indefinite, or singular with no "
+                             "null component grounded)")
 
     def apply(self, pc, x, y):
         """y = A^-1 x."""
@@ -110,8 +110,10 @@ class BandPC:
     def describe(self) -> str:
         """The factor in words."""
         b = self.band
-        return (f"banded Cholesky (LAPACK dpbtrf) in reverse Cuthill-McKee order, bandwidth {b.width}, "
-                f"{b.shape[1]} rows" if b is not None else "banded Cholesky (not set up)")
+        if b is None:
+            return "banded Cholesky (not set up)"
+        order = "its own" if np.array_equal(b.perm, np.arange(b.shape[1])) else "reverse Cuthill-McKee"
+        return f"banded Cholesky (LAPACK dpbtrf) in {order} order, bandwidth {b.width}, {b.shape[1]} rows"
 
     def view(self, pc, viewer):
         """-ksp_view's line."""

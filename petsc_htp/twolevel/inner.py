@@ -152,8 +152,6 @@ def text(pc, cycles=1) -> str:
     if kind in ("gamg", "mg"):
         count = {1: "one", 2: "two"}.get(cycles, str(cycles))
         return f"{count} {kind.upper()} V-cycle{'s' if cycles > 1 else ''} ({pc.getMGLevels()} levels)"
-    if kind == "python" and "pc_python_type" in rest:
-        pc.setPythonType(rest.pop("pc_python_type"))
     if kind == "ksp":
         inner = pc.getKSP()
         return (f"{inner.getType().upper()} to rtol {inner.getTolerances()[0]:g} preconditioned by "
