@@ -26,7 +26,7 @@ EXPECTED = {
     "negative_diagonal": r"error: the matrix has negative diagonal entries in 1 row\(s\), the first global row 1022;.*",
     "nonsymmetric": r"error: the matrix is not symmetric \(random probe .*MAT_SYMMETRIC.*",
     "indefinite": {1: r"error: HTPPC needs a symmetric positive \(semi\)definite matrix, but its (banded )?Cholesky "
-                      r"factor has (\d+ negative pivot\(s\)|a pivot that is not positive) in 1024 rows: the matrix is "
+                      r"factor has (\d+ negative pivot\(s\)|a negative pivot) in 1024 rows: the matrix is "
                       r"indefinite",      # one factor: its inertia
                    2: r"diverged DIVERGED_INDEFINITE_(MAT|PC)"},
     "indefinite_rich": r"diverged DIVERGED_INDEFINITE_(MAT|PC)",          # ICC(0) on one rank: CG names it

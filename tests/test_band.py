@@ -65,24 +65,30 @@ def test_band_pc_names_an_indefinite_matrix():
     rhs.set(1.0)
     with pytest.raises(PETSc.Error) as err:
         ksp.solve(rhs, x)
-    assert "not positive definite" in str(err.value.__cause__ or err.value)
+    assert "not positive semidefinite" in str(err.value.__cause__ or err.value)
 
 
-def test_band_factors_the_lower_triangle_in_its_order():
-    """Band.solve is A^-1 to rounding, and its pivots show a singular matrix's null direction (null_row)."""
+def test_band_factors_the_lower_triangle_in_its_order_and_grounds_a_null_pivot():
+    """Band.solve is A^-1 to rounding; a singular matrix (a Neumann matrix, nothing grounded before) has its null
+    pivot grounded, and the grounded factor solves a consistent system exactly; a negative pivot is info > 0."""
     A, _ = foreign.neumann(20)
     A = sp.csr_matrix(A)
     band = Band(A)
-    info, null_row = band.factor(A.data)
-    assert info > 0 or null_row >= 0                      # singular: the last pivot vanishes or goes negative
+    info, grounded = band.factor(A.data)
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    b -= b.mean()
+    x = np.empty_like(b)
+    band.solve(b, x)
+    assert info == 0 and grounded.size == 1 and np.linalg.norm(A @ x - b) <= 1e-8 * np.linalg.norm(b)
     shifted = (A + sp.identity(A.shape[0])).tocsr()
     shifted.sort_indices()
     band = Band(shifted)
-    assert band.factor(shifted.data) == (0, -1)
-    b = np.random.default_rng(0).standard_normal(A.shape[0])
-    x = np.empty_like(b)
+    assert band.factor(shifted.data)[0] == 0 and band.factor(shifted.data)[1].size == 0
     band.solve(b, x)
     assert np.linalg.norm(shifted @ x - b) <= 1e-12 * np.linalg.norm(b)
+    indefinite = (A - 0.5 * sp.identity(A.shape[0])).tocsr()
+    indefinite.sort_indices()
+    assert Band(indefinite).factor(indefinite.data)[0] > 0
 
 
 def test_a_strip_and_a_small_grid_take_the_banded_factor_and_a_wide_grid_does_not():
@@ -112,12 +118,35 @@ def test_a_strip_and_a_small_grid_take_the_banded_factor_and_a_wide_grid_does_no
 
 def test_a_null_direction_that_is_no_constant_is_grounded():
     """D A D of a Neumann matrix (D from 1e-2 to 1e2) with nothing attached: its row sums do not vanish, so no
-    component is grounded first; the banded factor's vanishing pivot shows the null direction, every component is
-    grounded, and CG on the consistent system converges."""
+    component is grounded first; the banded factor's vanishing pivot shows the null direction and is grounded, and CG
+    on the consistent system converges."""
     A, _ = foreign.neumann(30)
     d = 10.0 ** np.random.default_rng(0).uniform(-2, 2, A.shape[0])
     S = sp.csr_matrix(sp.diags(d) @ A @ sp.diags(d))
     b = S @ np.random.default_rng(1).standard_normal(A.shape[0])
     reason, its, relres, ksp, _ = solve(S, b)
     assert reason > 0 and relres <= 1e-8 and its <= 5, (reason, its, relres)
-    assert "one banded Cholesky factor" in lines(ksp) and "1 null component(s) grounded" in lines(ksp)
+    assert "one banded Cholesky factor" in lines(ksp) and "1 null pivot(s) grounded" in lines(ksp)
+
+
+def test_a_singular_chain_on_two_ranks_is_grounded_in_its_band(tmp_path):
+    """On several ranks nothing is grounded before the gathered factor (PCREDUNDANT): a Neumann chain's banded factor
+    grounds its null pivot itself, and CG with the constant null space attached converges (PETSc's Cholesky took it by
+    its nonzero shift before)."""
+    from test_foreign import EXAMPLE, HTPPC_FLAGS, _mpirun
+
+    n = 20000
+    A = sp.diags([-np.ones(n - 1), 2.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tolil()
+    A[0, 0] = A[n - 1, n - 1] = 1.0
+    A = sp.csr_matrix(A)
+    b = np.random.default_rng(0).standard_normal(n)
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
+                                comm=PETSc.COMM_SELF)
+    viewer = PETSc.Viewer().createBinary(str(tmp_path / "neumann_chain.petsc"), "w", comm=PETSc.COMM_SELF)
+    mat.view(viewer)
+    PETSc.Vec().createWithArray(b - b.mean(), comm=PETSc.COMM_SELF).view(viewer)   # a consistent right-hand side
+    viewer.destroy()
+    proc = _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(tmp_path / "neumann_chain.petsc"), *HTPPC_FLAGS)
+    assert proc.returncode == 0 and "its graph is a chain" in proc.stdout, proc.stdout + proc.stderr
+    relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+    assert "null pivot(s) grounded" in proc.stdout and relres <= 1.01e-8, proc.stdout

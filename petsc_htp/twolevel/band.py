@@ -14,8 +14,9 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
 #                        rows, more than a factor of that bandwidth)
-NULL_PIVOT = 1e-8      # a pivot whose square is below this share of its row's diagonal entry: a null direction (grounded:
-#                        a rank-one change, where the matrix was only ill-conditioned: a few CG iterations more)
+NULL_PIVOT = 1e-8      # a pivot below this share of its row's diagonal entry: a null direction (grounded: a rank-one
+#                        change, where the matrix was only ill-conditioned: a few CG iterations more)
+GROUND_MAX = 64        # factorisations at most, each grounding the null pivots it found
 
 
 def ordering(rows, reorder=True) -> tuple:
@@ -56,17 +57,31 @@ class Band:
                 and np.array_equal(rows.indices, self.indices))
 
     def factor(self, data) -> tuple:
-        """Factor the values ``data`` (in the pattern's CSR order). Returns (LAPACK's info: k > 0 where the k-th pivot
-        in the new order is not positive, the first row, in the original order, whose pivot squared is below
-        :data:`NULL_PIVOT` of its diagonal entry, or -1)."""
+        """Factor the values ``data`` (in the pattern's CSR order), grounding each null pivot: a pivot below
+        :data:`NULL_PIVOT` of its row's diagonal entry (a singular matrix's, where no component was grounded before:
+        the rounding leaves it either side of zero) has that diagonal entry raised by its own magnitude, and the
+        values are factored again, at most :data:`GROUND_MAX` times. Returns (LAPACK's info: k > 0 where the k-th
+        pivot in the band's order is negative beyond that, i.e. the matrix is indefinite; the rows grounded, in the
+        original order)."""
         ab = np.zeros(self.shape[0] * self.shape[1])
         ab[self.at] = data[self.lower]
-        diag = ab[self.diag_at]
-        self.c, info = lapack.dpbtrf(ab.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
-        if info > 0:
-            return info, -1
-        small = np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * np.abs(diag))
-        return 0, int(self.perm[small[0]]) if small.size else -1
+        diag = np.abs(ab[self.diag_at])
+        grounded = np.zeros(0, dtype=np.int64)
+        for _ in range(GROUND_MAX):
+            work = ab.copy()
+            work[self.diag_at[grounded]] += diag[grounded]
+            self.c, info = lapack.dpbtrf(work.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
+            if info > 0:                               # LAPACK leaves the failed pivot in place
+                pivot = self.c[0, info - 1]
+                if not pivot > -NULL_PIVOT * diag[info - 1]:
+                    return info, self.perm[grounded]
+                null = np.array([info - 1])
+            else:
+                null = np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag)
+                if null.size == 0:
+                    return 0, self.perm[grounded]
+            grounded = np.union1d(grounded, null)
+        return int(grounded[-1]) + 1, self.perm[grounded]
 
     def solve(self, b, out):
         """out = A^-1 b."""
@@ -82,11 +97,11 @@ class Band:
 class BandPC:
     """PCPYTHON context: the banded Cholesky factor of the PC's operator (a sequential AIJ matrix, or one rank's
     matrix), e.g. ``-pc_type python -pc_python_type petsc_htp.twolevel.band.BandPC``. A pivot that is not positive
-    is an error naming the matrix indefinite or singular (:attr:`info`, LAPACK's, says which); :attr:`null_row`
-    is a row whose pivot vanished (-1: none)."""
+    is an error naming the matrix indefinite (:attr:`info`, LAPACK's, says which); a pivot that vanishes is grounded
+    (:meth:`Band.factor`; :attr:`grounded`: the rows, in the operator's order)."""
 
     def __init__(self):
-        self.band, self.info, self.null_row = None, 0, -1
+        self.band, self.info, self.grounded = None, 0, np.zeros(0, dtype=np.int64)
 
     def setUp(self, pc):
         """Order (on a new pattern) and factor the operator's values."""
@@ -95,11 +110,10 @@ class BandPC:
         with local_rows(pc.getOperators()[1]) as rows:
             if self.band is None or not self.band.same(rows):
                 self.band = Band(rows)
-            self.info, self.null_row = self.band.factor(rows.data)
+            self.info, self.grounded = self.band.factor(rows.data)
         if self.info > 0:
             raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (in its band's order) "
-                             "is not positive: the matrix is not positive definite (indefinite, or singular with no "
-                             "null component grounded)")
+                             "is negative: the matrix is not positive semidefinite")
 
     def apply(self, pc, x, y):
         """y = A^-1 x."""
@@ -113,7 +127,8 @@ class BandPC:
         if b is None:
             return "banded Cholesky (not set up)"
         order = "its own" if np.array_equal(b.perm, np.arange(b.shape[1])) else "reverse Cuthill-McKee"
-        return f"banded Cholesky (LAPACK dpbtrf) in {order} order, bandwidth {b.width}, {b.shape[1]} rows"
+        null = f", {self.grounded.size} null pivot(s) grounded" if self.grounded.size else ""
+        return f"banded Cholesky (LAPACK dpbtrf) in {order} order, bandwidth {b.width}, {b.shape[1]} rows{null}"
 
     def view(self, pc, viewer):
         """-ksp_view's line."""

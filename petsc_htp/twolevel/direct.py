@@ -124,15 +124,10 @@ class DirectPC:
         try:
             set_up(self.pc, self.prefix, self.rest)
         except PETSc.Error:
-            if self._band() is None or self._band().info <= 0 or self.ranks > 1:
+            if self._band() is None or self._band().info <= 0:
                 raise
-            if not every:                                      # a null direction not grounded, or indefinite
-                return self.numeric(rows, density, keep_space, every=True)
             raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its banded Cholesky "
-                             f"factor has a pivot that is not positive in {rows.shape[0]} rows: the matrix is "
-                             "indefinite") from None
-        if self._band() is not None and self._band().null_row >= 0 and self.ranks == 1 and not every:
-            return self.numeric(rows, density, keep_space, every=True)         # a null direction not grounded
+                             f"factor has a negative pivot in {rows.shape[0]} rows: the matrix is indefinite") from None
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
         if self.ranks > 1 and self.kind not in BLOCKED:   # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
