@@ -63,8 +63,14 @@ class WholeChoice:
             return kind
         if coll.size == 1 and (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(A):
             return "band"                                   # no graph walk (0.5 ms at 1000 rows)
-        # whole_factor's answer wherever it needs no dimension: the graph walk costs 0.6 ms at 1000 rows
-        if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension: no graph walk
+        return self._small(mat, A, coll, n, per_row, coords)
+
+    def _small(self, mat, A, coll, n, per_row, coords):
+        """:func:`.twolevel.sizing.whole_factor`'s answer for a small matrix, without the graph walk (0.6 ms at 1000
+        rows) wherever the answer needs no dimension (collective)."""
+        from .twolevel import sizing
+
+        if n <= sizing.DIRECT_MAX[3] and per_row <= sizing.RICH_ROW:      # the same in any dimension
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
             return "icc"                                                  # the same in any dimension

@@ -12,6 +12,8 @@ import numpy as np
 from scipy.linalg import lapack
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .nullspace import vanishing
+
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
 #                        rows, more than a factor of that bandwidth)
 NULL_PIVOT = 1e-8      # a pivot below this share of its row's diagonal entry: a null direction (grounded: a rank-one
@@ -45,6 +47,7 @@ class Band:
         n = rows.shape[0]
         self.perm, qi, qj, self.width = order or ordering(rows)
         self.indptr, self.indices = rows.indptr.copy(), rows.indices.copy()
+        self.row_of = np.repeat(np.arange(n), np.diff(rows.indptr))
         self.lower = np.flatnonzero(qi >= qj)                  # entries in the lower band of the new order
         qi, qj = qi[self.lower].astype(np.int64), qj[self.lower].astype(np.int64)
         self.at = (qi - qj) + qj * (self.width + 1)            # ab[i - j, j], Fortran order (LAPACK's lower form)
@@ -60,13 +63,17 @@ class Band:
         """Factor the values ``data`` (in the pattern's CSR order), grounding each null pivot: a pivot below
         :data:`NULL_PIVOT` of its row's diagonal entry (a singular matrix's, where no component was grounded before:
         the rounding leaves it either side of zero) has that diagonal entry raised by its own magnitude, and the
-        values are factored again, at most :data:`GROUND_MAX` times. Returns (LAPACK's info: k > 0 where the k-th
+        values are factored again, at most :data:`GROUND_MAX` times; where every row sum vanishes the last row is
+        grounded first (a connected graph's one null pivot: no second factorisation). Returns (LAPACK's info: k > 0 where the k-th
         pivot in the band's order is negative beyond that, i.e. the matrix is indefinite; the rows grounded, in the
         original order)."""
         ab = np.zeros(self.shape[0] * self.shape[1])
         ab[self.at] = data[self.lower]
         diag = np.abs(ab[self.diag_at])
+        rowsum = np.bincount(self.row_of, weights=data, minlength=self.shape[1])
         grounded = np.zeros(0, dtype=np.int64)
+        if self.shape[1] and vanishing(rowsum, diag).all():   # every row sum vanishes: a connected graph's null
+            grounded = np.array([self.shape[1] - 1])         # pivot is its last (the others' come in the loop)
         for _ in range(GROUND_MAX):
             work = ab.copy()
             work[self.diag_at[grounded]] += diag[grounded]
