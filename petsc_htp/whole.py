@@ -122,8 +122,7 @@ class WholeChoice:
             if crossing(mat, A, coll, A.data != 0)[1] >= spread.CROSSING:    # the blocks keep too few couplings to tell
                 growth = spread.global_growth(mat, A, coll)
         if np.isfinite(growth) and sizing.chain(growth, per_row):
-            self.why = (f"its graph is a chain (balls grow with exponent {growth:.2f}): in reverse Cuthill-McKee order "
-                        "the factor is a band")
+            self.why = f"its graph is a chain (balls grow with exponent {growth:.2f}): its Cholesky factor is a band"
             return "band"
         if not growth >= sizing.EXPANDER_GROWTH:
             return None

@@ -173,10 +173,12 @@ def test_a_pmat_other_than_the_amat_takes_the_balanced_form():
     ksp.getPC().setPythonContext(petsc_htp.HTPPC())
     x, rhs = amat.createVecs()
     rhs.setArray(b)
-    ksp.solve(rhs, x)
+    try:
+        ksp.solve(rhs, x)
+    finally:
+        PETSc.Options("pm_").delValue("htp_direct_max")
     relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
     assert ksp.getConvergedReason() > 0 and relres <= 1.01e-8, (ksp.getConvergedReason(), ksp.its, relres)
-    PETSc.Options("pm_").delValue("htp_direct_max")
     assert ksp.getPC().getPythonContext().setup.forms.form("cg") == "balanced"
 
 

@@ -9,16 +9,18 @@ whose scalar kernels are slower: a 2-D 5-point matrix of 2 025 rows (w = 45) too
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from .nullspace import vanishing
+from .nullspace import graph_components, vanishing
 
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
 #                        rows, more than a factor of that bandwidth)
 NULL_PIVOT = 1e-8      # a pivot below this share of its row's diagonal entry: a null direction (grounded: a rank-one
 #                        change, where the matrix was only ill-conditioned: a few CG iterations more)
-GROUND_MAX = 64        # factorisations at most, each grounding the null pivots it found
+GROUND_MAX = 16        # factorisations at most, each grounding the null pivots it found ...
+EVERY_AFTER = 2        # ... and from the third on the last row of every component too
 
 
 def ordering(rows, reorder=True) -> tuple:
@@ -63,32 +65,48 @@ class Band:
         """Factor the values ``data`` (in the pattern's CSR order), grounding each null pivot: a pivot below
         :data:`NULL_PIVOT` of its row's diagonal entry (a singular matrix's, where no component was grounded before:
         the rounding leaves it either side of zero) has that diagonal entry raised by its own magnitude, and the
-        values are factored again, at most :data:`GROUND_MAX` times; where every row sum vanishes the last row is
-        grounded first (a connected graph's one null pivot: no second factorisation). Returns (LAPACK's info: k > 0 where the k-th
-        pivot in the band's order is negative beyond that, i.e. the matrix is indefinite; the rows grounded, in the
-        original order)."""
+        values are factored again; where every row sum vanishes the last row is grounded first (a connected graph's
+        one null pivot: no second factorisation), and after :data:`EVERY_AFTER` more the last row of every component
+        of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
+        negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
+        factorisations; else 0 | the rows grounded, in the original order)."""
         ab = np.zeros(self.shape[0] * self.shape[1])
         ab[self.at] = data[self.lower]
-        diag = np.abs(ab[self.diag_at])
+        diag = np.abs(ab[self.diag_at])                         # in the band's order
         rowsum = np.bincount(self.row_of, weights=data, minlength=self.shape[1])
         grounded = np.zeros(0, dtype=np.int64)
-        if self.shape[1] and vanishing(rowsum, diag).all():   # every row sum vanishes: a connected graph's null
-            grounded = np.array([self.shape[1] - 1])         # pivot is its last (the others' come in the loop)
-        for _ in range(GROUND_MAX):
-            work = ab.copy()
-            work[self.diag_at[grounded]] += diag[grounded]
-            self.c, info = lapack.dpbtrf(work.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
-            if info > 0:                               # LAPACK leaves the failed pivot in place
-                pivot = self.c[0, info - 1]
-                if not pivot > -NULL_PIVOT * diag[info - 1]:
-                    return info, self.perm[grounded]
-                null = np.array([info - 1])
-            else:
-                null = np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag)
-                if null.size == 0:
-                    return 0, self.perm[grounded]
+        if self.shape[1] and vanishing(rowsum, diag).all():
+            grounded = np.array([self.shape[1] - 1])
+        for attempt in range(GROUND_MAX):
+            info, null = self._attempt(ab, diag, grounded)
+            if info > 0 or null.size == 0:
+                return info, self.perm[grounded]
+            if attempt == EVERY_AFTER:
+                null = np.union1d(null, self._component_ends(data))
             grounded = np.union1d(grounded, null)
-        return int(grounded[-1]) + 1, self.perm[grounded]
+        return -1, self.perm[grounded]
+
+    def _attempt(self, ab, diag, grounded) -> tuple:
+        """One factorisation of the band ``ab`` with the rows ``grounded`` (band order) raised by ``diag``: (LAPACK's
+        info where a pivot is negative beyond :data:`NULL_PIVOT`, else 0 | the null pivots found, band order)."""
+        work = ab.copy()
+        work[self.diag_at[grounded]] += diag[grounded]
+        self.c, info = lapack.dpbtrf(work.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
+        if info > 0:                                            # LAPACK leaves the failed pivot in place
+            if not self.c[0, info - 1] > -NULL_PIVOT * diag[info - 1]:
+                return info, np.zeros(0, dtype=np.int64)
+            return 0, np.array([info - 1])
+        return 0, np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag)
+
+    def _component_ends(self, data) -> np.ndarray:
+        """The last row (band order) of each connected component of the nonzero entries ``data``'s graph."""
+        n = self.shape[1]
+        count, label = graph_components(sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n)))
+        inverse = np.empty(n, dtype=np.int64)
+        inverse[self.perm] = np.arange(n)
+        ends = np.full(count, -1, dtype=np.int64)
+        np.maximum.at(ends, label, inverse)
+        return ends
 
     def solve(self, b, out):
         """out = A^-1 b."""
@@ -121,6 +139,10 @@ class BandPC:
         if self.info > 0:
             raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (in its band's order) "
                              "is negative: the matrix is not positive semidefinite")
+        if self.info < 0:
+            raise ValueError(f"the banded Cholesky factor still has null pivots after {GROUND_MAX} factorisations, "
+                             f"{self.grounded.size} rows grounded: the matrix's null space is larger than its graph's "
+                             "components")
 
     def apply(self, pc, x, y):
         """y = A^-1 x."""

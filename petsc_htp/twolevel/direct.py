@@ -23,7 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
-from .band import Band
+from .band import Band, BandPC
 from .csr import row_sums
 from .inner import configured_pc, set_up
 
@@ -124,7 +124,7 @@ class DirectPC:
             self.pc.setOperators(target, target)
         try:
             set_up(self.pc, self.prefix, self.rest)
-        except PETSc.Error:
+        except PETSc.Error:                                    # (several ranks: BandPC's own message, as cause)
             if self._band() is None or self._band().info <= 0:
                 raise
             raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its banded Cholesky "
@@ -142,7 +142,8 @@ class DirectPC:
 
     def _band(self):
         """The banded factor's context (:class:`.band.BandPC`) where it is the factor on this rank, else None."""
-        return self.pc.getPythonContext() if self.pc.getType() == "python" else None
+        ctx = self.pc.getPythonContext() if self.pc.getType() == "python" else None
+        return ctx if isinstance(ctx, BandPC) else None
 
     def _adopted(self, target):
         """(the trial's PC, no options left) where it may serve as the factor: ICC(0) of ``target`` itself, on one
@@ -216,7 +217,9 @@ class DirectPC:
         if self.ranks > 1:
             return self.gathered
         band = self._band()
-        return band.band.nbytes if band is not None else int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
+        if band is not None:
+            return band.band.nbytes if band.band is not None else 0
+        return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
@@ -230,9 +233,10 @@ class DirectPC:
             where = f" (options -{self.prefix}sub_*)"
             memory = f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
         elif self.ranks > 1:
-            factor = "LAPACK's band" if self.kind == "band" else FACTORS[self.kind]["pc_type"]
+            factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if self.kind == "band" else
+                      f"{FACTORS[self.kind]['pc_type']}, {self.ordering} ordering")
             where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
-                     f"{factor}, {self.ordering} ordering; options -{self.prefix}redundant_*)")
+                     f"{factor}; options -{self.prefix}redundant_*)")
             memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
         else:
             band = self._band()
