@@ -26,7 +26,10 @@ V-cycle instead; it makes a larger coarse space cheap, so the default leaves the
 which keeps every frame within 40 iterations at 128^3 (sweeps over leaf size and coarse solver at 32^3 to 128^3:
 LU wins at 4096 coarse rows, GAMG at 13824).
 
-Below :data:`DIRECT_MAX` rows one sparse Cholesky factor of the whole matrix (nested dissection) costs less
+On one rank, a matrix whose bandwidth (its own order's or reverse Cuthill-McKee's) is at most :data:`BAND_WIDTH`
+gets one banded Cholesky factor, LAPACK's (:mod:`.band`), among the small matrices and, bare, above them
+(``petsc_htp.whole.WholeChoice._banded``; ``results/band-20261127``). Otherwise:
+below :data:`DIRECT_MAX` rows one sparse Cholesky factor of the whole matrix (nested dissection) costs less
 than the two-level setup: the foreign study's small-matrix sweep (``petsc-htp bench --studies foreign --methods
 cg_htp_direct cg_htp_twolevel --foreign-scales 500 1000 2000 4000 8000 16000``; README) has the factor ahead up
 to about 8000 rows in 2-D (15 against 21 ms at 7921) and 1000 in 3-D (3.5 against 4.9 ms; 12.5 against 6.8 at
