@@ -89,8 +89,7 @@ class WholeChoice:
         if width > sizing.BAND_WIDTH:
             return None
         self.made = Band(A, order)
-        own = np.array_equal(order[0], np.arange(A.shape[0]))
-        self.why = (f"{'its own' if own else 'its reverse Cuthill-McKee'} order has bandwidth {width} (at most "
+        self.why = (f"{'its own' if self.made.own else 'its reverse Cuthill-McKee'} order has bandwidth {width} (at most "
                     f"{sizing.BAND_WIDTH}): one banded Cholesky factor costs less than the two-level method")
         return "band"
 

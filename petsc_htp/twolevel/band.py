@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from scipy.linalg import lapack
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from .csr import row_sums
 from .nullspace import graph_components, vanishing
 
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
@@ -49,10 +50,12 @@ class Band:
         n = rows.shape[0]
         self.perm, qi, qj, self.width = order or ordering(rows)
         self.indptr, self.indices = rows.indptr.copy(), rows.indices.copy()
-        self.row_of = np.repeat(np.arange(n), np.diff(rows.indptr))
+        self.own = np.array_equal(self.perm, np.arange(n))       # the rows' own order
         self.lower = np.flatnonzero(qi >= qj)                  # entries in the lower band of the new order
         qi, qj = qi[self.lower].astype(np.int64), qj[self.lower].astype(np.int64)
         self.at = (qi - qj) + qj * (self.width + 1)            # ab[i - j, j], Fortran order (LAPACK's lower form)
+        self.on = np.flatnonzero(qi == qj)                      # ... of them the diagonal's, in the columns qj[on]
+        self.on_col = qj[self.on]
         self.diag_at = np.arange(n) * (self.width + 1)
         self.shape, self.c = (self.width + 1, n), None
 
@@ -70,15 +73,14 @@ class Band:
         of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
         negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
         factorisations; else 0 | the rows grounded, in the original order)."""
-        ab = np.zeros(self.shape[0] * self.shape[1])
-        ab[self.at] = data[self.lower]
-        diag = np.abs(ab[self.diag_at])                         # in the band's order
-        rowsum = np.bincount(self.row_of, weights=data, minlength=self.shape[1])
+        values = data[self.lower]
+        diag = np.zeros(self.shape[1])                          # |a_ii| in the band's order
+        diag[self.on_col] = np.abs(values[self.on])
         grounded = np.zeros(0, dtype=np.int64)
-        if self.shape[1] and vanishing(rowsum, diag).all():
+        if self.shape[1] and vanishing(row_sums(self.indptr, data), diag).all():
             grounded = np.array([self.shape[1] - 1])
         for attempt in range(GROUND_MAX):
-            info, null = self._attempt(ab, diag, grounded)
+            info, null = self._attempt(values, diag, grounded)
             if info > 0 or null.size == 0:
                 return info, self.perm[grounded]
             if attempt == EVERY_AFTER:
@@ -86,12 +88,14 @@ class Band:
             grounded = np.union1d(grounded, null)
         return -1, self.perm[grounded]
 
-    def _attempt(self, ab, diag, grounded) -> tuple:
-        """One factorisation of the band ``ab`` with the rows ``grounded`` (band order) raised by ``diag``: (LAPACK's
-        info where a pivot is negative beyond :data:`NULL_PIVOT`, else 0 | the null pivots found, band order)."""
-        work = ab.copy()
-        work[self.diag_at[grounded]] += diag[grounded]
-        self.c, info = lapack.dpbtrf(work.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
+    def _attempt(self, values, diag, grounded) -> tuple:
+        """One factorisation of the band of ``values`` (the lower band's entries) with the rows ``grounded`` (band
+        order) raised by ``diag``, made afresh (no copy of a band kept for another try): (LAPACK's info where a pivot
+        is negative beyond :data:`NULL_PIVOT`, else 0 | the null pivots found, band order)."""
+        ab = np.zeros(self.shape[0] * self.shape[1])
+        ab[self.at] = values
+        ab[self.diag_at[grounded]] += diag[grounded]
+        self.c, info = lapack.dpbtrf(ab.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
         if info > 0:                                            # LAPACK leaves the failed pivot in place
             if not self.c[0, info - 1] > -NULL_PIVOT * diag[info - 1]:
                 return info, np.zeros(0, dtype=np.int64)
@@ -155,7 +159,7 @@ class BandPC:
         b = self.band
         if b is None:
             return "banded Cholesky (not set up)"
-        order = "its own" if np.array_equal(b.perm, np.arange(b.shape[1])) else "reverse Cuthill-McKee"
+        order = "its own" if b.own else "reverse Cuthill-McKee"
         null = f", {self.grounded.size} null pivot(s) grounded" if self.grounded.size else ""
         return f"banded Cholesky (LAPACK dpbtrf) in {order} order, bandwidth {b.width}, {b.shape[1]} rows{null}"
 

@@ -61,7 +61,7 @@ class DirectPC:
     rows : scipy.sparse.csr_matrix
         This rank's rows (the analysed pattern).
     kind : str
-        cholesky, band (LAPACK's banded Cholesky in reverse Cuthill-McKee order, :mod:`.band`) or icc
+        cholesky, band (LAPACK's banded Cholesky in its own or reverse Cuthill-McKee order, :mod:`.band`) or icc
         (:data:`FACTORS`), or bjacobi or asm
         (ICC(0) of each rank's block, grown for asm: :func:`factor_options`).
     prefix : str
@@ -118,8 +118,8 @@ class DirectPC:
             if self.ranks > 1 and self.kind not in BLOCKED and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)
-            self.ordering = None if self.kind in BLOCKED else PETSc.Options(self.prefix).getString(
-                ("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind].get(key, "rcm"))
+            self.ordering = None if self.kind in BLOCKED or self.kind == "band" else PETSc.Options(
+                self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind][key])
         else:
             self.pc.setOperators(target, target)
         try:

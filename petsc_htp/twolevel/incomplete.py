@@ -115,17 +115,20 @@ def _candidates(A, start, n, per_row, coll):
     """The rules of a bare matrix's rows (a rank's ``A``, ``n`` rows in all, ``per_row`` stored entries a row) whose
     gates they pass, in order, for a trial on a graph ball: (what -ksp_view says, the test new values must pass, whether
     the ranks' blocks are to be grown). Collective."""
+    if STENCIL < per_row < WIDE_ROW:                      # no rule's rows (SPARSE_ROW is below STENCIL)
+        return
+    local = positive_weight(A, start)                     # this rank's; the least and the largest over the ranks
     if per_row <= STENCIL:
-        weight = coll.min_array(np.array([positive_weight(A, start)]))[0]
+        weight = coll.min_array(np.array([local]))[0]
         if weight >= WEIGHT:
             yield f"strongly anisotropic rows (positive couplings {weight:.2f} of the diagonal", holds, True
     if per_row >= WIDE_ROW and n <= WIDE_MAX and _spread(A, start, coll) <= CONTRAST:
-        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
+        weight = coll.max_array(np.array([local]))[0]
         if weight < WEIGHT:
             yield f"wide rows ({per_row:.0f} stored entries a row, positive couplings {weight:.2f} of the diagonal", \
                 wide, False
     if per_row <= SPARSE_ROW and n <= WEAK_MAX and _spread(A, start, coll) <= CONTRAST:
-        weight = coll.max_array(np.array([positive_weight(A, start)]))[0]
+        weight = coll.max_array(np.array([local]))[0]
         weak = coll.min_array(np.array([weak_share(A, start)]))[0] if weight < WEIGHT else 0.0
         if weak >= WEAK_SHARE:
             yield f"grid-aligned anisotropy ({100 * weak:.0f}% of the couplings weak", aligned, False
