@@ -196,10 +196,9 @@ class HTPPC(Inspection):
 
     def apply(self, pc, x, y):
         """y = M x (or D^-1 x under an active Jacobi fallback)."""
+        self._ready(pc)
         self._ev_apply.begin()
         try:
-            if self.setup is None:
-                raise RuntimeError("HTPPC.apply called before setUp")
             size = x.getLocalSize()
             if size != self.n:
                 raise ValueError(f"vector has {size} local entries but the HTP preconditioner "
@@ -211,6 +210,14 @@ class HTPPC(Inspection):
         finally:
             self._ev_apply.end()
 
+    def _ready(self, pc):
+        """Set up where PETSc holds the PC as set up but this context is not: a second KSPSetFromOptions made a new
+        context (petsc4py re-reads -pc_python_type) for operators whose state did not change, so PCSetUp skips it."""
+        if self.setup is None:
+            if pc.getOperators()[1].handle == 0:
+                raise RuntimeError("HTPPC.apply called before the PC has an operator")
+            self.setUp(pc)
+
     def applyTranspose(self, pc, x, y):
         """M is symmetric: same as :meth:`apply`."""
         self.apply(pc, x, y)
@@ -219,7 +226,8 @@ class HTPPC(Inspection):
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
         raised before its postSolve kept are given back first."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
-        if self.setup is not None and not self.fallback_active:
+        self._ready(pc)
+        if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
                      or amat.handle != pmat.handle)      # M made from a Pmat other than the solved Amat

@@ -18,7 +18,7 @@ from petsc4py import PETSc  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from petsc_htp.bench.harness import reason_name  # noqa: E402
 from petsc_htp.petscmat import region_nullspace  # noqa: E402
-from petsc_htp.scenes.foreign import dmda, neumann  # noqa: E402
+from petsc_htp.scenes.foreign import cubes, dmda, neumann  # noqa: E402
 from petsc_htp.scenes.generator import make_frame  # noqa: E402
 
 COMM = PETSc.COMM_WORLD
@@ -312,6 +312,65 @@ def case_singular_scaled():
     A, b = neumann(64, 1e3, 0)[:2]
     D = sp.diags(1.0 / np.sqrt(A.diagonal()))
     return outcome(dist(D @ A @ D), D @ b)[0]
+
+
+def _neumann_square(side=30):
+    """The 5-point Neumann Laplacian of side^2 rows (row sums 0, the constant its null vector), nothing attached."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side)).tolil()
+    T[0, 0] = T[-1, -1] = 1.0
+    return sp.kronsum(T.tocsr(), T.tocsr()).tocsr()
+
+
+def case_null_vector_attached():
+    """D A D, A the Neumann square's Laplacian of 22 500 rows and D = 10^U(-1, 1) per row, its null vector D^-1 1
+    attached: the pieces' constants made the coarse space (423 CG iterations), now that vector does."""
+    A = _neumann_square(150)
+    d = 10 ** np.random.default_rng(2).uniform(-1, 1, A.shape[0])
+    mat = dist(sp.diags(d) @ A @ sp.diags(d))
+    z = mat.createVecRight()
+    lo, hi = z.getOwnershipRange()
+    z.setArray(1 / d[lo:hi])
+    z.normalize()
+    mat.setNullSpace(PETSc.NullSpace().create(vectors=[z], comm=COMM))
+    b = np.random.default_rng(1).standard_normal(A.shape[0])
+    return outcome(mat, b - (b @ (1 / d)) / ((1 / d) @ (1 / d)) * (1 / d))[0]
+
+
+def case_inconsistent_factor():
+    """A singular Neumann matrix without its null space, b not in its range, one factor of the whole matrix (a band
+    on one rank, gathered on two): CG reported CONVERGED_RTOL at a true relative residual of 7.6 (16 on two ranks)."""
+    return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900), {"htp_direct_max": -1})[0]
+
+
+def case_inconsistent_twolevel():
+    """The same, two-level (CG stopped with DIVERGED_DTOL): the same named error."""
+    return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900), {"htp_direct_max": 0})[0]
+
+
+def case_second_set_from_options():
+    """KSPSetFromOptions again between two solves (petsc4py makes a new python context, which PETSc, holding the PC
+    as set up, never set up: 'HTPPC.apply called before setUp')."""
+    A, b = dmda(2, 64, 1e3, 0)
+    mat = dist(A)
+    ksp = outcome(mat, b)[1]
+    db = PETSc.Options()
+    opts = {"pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"}
+    for k, v in opts.items():
+        db.setValue(k, v)
+    try:
+        ksp.setFromOptions()
+    finally:
+        for k in opts:
+            db.delValue(k)
+    return outcome(mat, b, ksp=ksp)[0]
+
+
+def case_jumps3d():
+    """Cell-centred finite volumes on 44^3 cells, 60 random cubes of 5^3 cells at 1e6, Dirichlet walls: the paired
+    leaves' two coarse V-cycles with Chebyshev's bound at 1.1 x the estimated eigenvalue made M indefinite (CG:
+    DIVERGED_INDEFINITE_PC after 8 iterations)."""
+    A, b = cubes(44)
+    return outcome(dist(A), b, {"htp_direct_max": 0})[0]
 
 
 def case_missing_checkpoint():

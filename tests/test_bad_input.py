@@ -17,6 +17,9 @@ MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import
 TIMEOUT = 300
 CONVERGED = r"converged \d+ (\d\.\de[-+]\d\d) (\d+) (\d+)"
 
+INCONSISTENT = (r"error: the matrix is singular \(its row sums vanish on 1 connected component\(s\), and no "
+                r"MatNullSpace is attached\) and the right-hand side is not in its range: its part along those "
+                r"components' constants is \d\.\de-\d\d of its norm, above the KSP's rtol 1e-08, .*")
 # case -> expected outcome (a regex matched against the whole line) on 1 rank and on 2 ranks
 EXPECTED = {
     "nan": r"error: the matrix has NaN or Inf entries in 1 row\(s\), the first global row 1023;.*",
@@ -48,6 +51,11 @@ EXPECTED = {
     "tiny_entries": CONVERGED,
     "penalty_rows": CONVERGED,
     "singular_scaled": CONVERGED,
+    "null_vector_attached": CONVERGED,
+    "inconsistent_factor": INCONSISTENT,
+    "inconsistent_twolevel": INCONSISTENT,
+    "second_set_from_options": CONVERGED,
+    "jumps3d": CONVERGED,
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
@@ -58,7 +66,8 @@ EXPECTED = {
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2"), "rescaled_values": ("1", "3")}
 # the most iterations a converged case may take (none: no bound)
-MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40, "penalty_rows": 40}
+MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40, "penalty_rows": 40, "jumps3d": 40,
+           "null_vector_attached": 40}
 
 pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"

@@ -12,6 +12,7 @@ PETSc user, a liquid simulation or a finite-element code hands over. Every funct
 - :func:`anisotropic`: rotated anisotropic diffusion, 9-point (PyAMG's stencil), Dirichlet boundaries.
 - :func:`lognormal`: 5-point Poisson with a log-normal permeability of the given contrast.
 - :func:`neumann`: 5-point variable coefficients with no-flux walls (singular; the constant is its null space).
+- :func:`cubes`: 3-D finite volumes with random cubes of a high conductivity.
 - :mod:`petsc_htp.scenes.meshes`: P1 finite elements on unstructured triangles and tets.
 """
 from __future__ import annotations
@@ -88,7 +89,7 @@ def dmda(dim, side, contrast=1e3, seed=0) -> tuple:
 
 
 def _grid5(k) -> tuple:
-    """(rows, cols, vals, diag) of a 2-D 5-point operator on conductivity ``k`` with no-flux walls."""
+    """(rows, cols, vals, diag) of a 2-D 5-point (3-D 7-point) operator on conductivity ``k``, no-flux walls."""
     rows, cols, vals = [], [], []
     diag = np.zeros(k.size)
     for i, j, w in _faces(k):
@@ -132,6 +133,25 @@ def neumann(side, contrast=1e3, seed=0) -> tuple:
              np.concatenate(vals + [diag]), n)
     b = np.random.default_rng(seed).standard_normal(n)
     return A, b - b.mean()
+
+
+def cubes(side, contrast=1e6, count=60, seed=5) -> tuple:
+    """Cell-centred finite volumes on ``side``^3 cells, conductivity 1 with ``count`` random cubes of 5^3 cells at
+    ``contrast`` (harmonic face means), Dirichlet walls (SPD); b = A x for a random x."""
+    rng = np.random.default_rng(seed)
+    k = np.ones((side,) * 3)
+    for i, j, m in rng.integers(0, side - 6, (count, 3)):
+        k[i:i + 5, j:j + 5, m:m + 5] = contrast
+    n = k.size
+    rows, cols, vals, diag = _grid5(k)
+    for axis in range(3):
+        for face in (0, side - 1):
+            wall = [slice(None)] * 3
+            wall[axis] = face
+            diag[np.arange(n).reshape(k.shape)[tuple(wall)].ravel()] += 2 * k[tuple(wall)].ravel()
+    A = _csr(np.concatenate(rows + [np.arange(n)]), np.concatenate(cols + [np.arange(n)]),
+             np.concatenate(vals + [diag]), n)
+    return A, A @ np.random.default_rng(1).standard_normal(n)
 
 
 def anisotropic(side, eps=0.01, angle=np.pi / 6, frame=0) -> tuple:

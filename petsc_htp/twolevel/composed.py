@@ -116,9 +116,10 @@ class TwoLevelPC:
             try:
                 if new_space:
                     self.its, weights = [], None
-                    if self.space.flat and not self.space.null_components:    # a null constant stays
+                    if self.space.flat:                         # a null constant stays, an attached vector serves
                         with diagonal_block(self.mat, rows) as block:
-                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block, pinned)
+                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block, pinned,
+                                                                      self.mat if self.space.null_components else None)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density), nearnull.vectors(self.mat, self.st.bs), weights)
                 else:
@@ -148,7 +149,9 @@ class TwoLevelPC:
         self.forms.mult(x, y)
 
     def presolve(self, ksp, b, x, stale=False):
-        """The form's start before a solve (:meth:`.forms.Forms.presolve`)."""
+        """The form's start before a solve (:meth:`.forms.Forms.presolve`), once b is in the range."""
+        if self.space.range is not None:
+            self.space.range.check(ksp, b)
         return self.forms.presolve(ksp, b, x, stale)
 
     def solved(self, its, seconds):

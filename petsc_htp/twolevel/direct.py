@@ -23,7 +23,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import nullspace
+from ..collective import Collective
 from .band import Band, BandPC
+from .consistency import RangeCheck
 from .csr import row_sums
 from .inner import configured_pc, set_up
 
@@ -89,7 +91,7 @@ class DirectPC:
         self.trial, self.order = (None, made) if isinstance(made, Band) else (made, None)
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
-        self.G = self.pc = None
+        self.G = self.pc = self.range = None       # range: the null constants b must not hold (:mod:`.consistency`)
         self.rest, self.gathered = {}, 0
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
@@ -109,7 +111,10 @@ class DirectPC:
         KSP's null space and the factor's shift take a singular matrix)."""
         t0 = time.perf_counter()
         ground = self.ranks == 1 and (self.holds is None or every)     # see holds: chosen for a regular matrix
+        self.range = None
         target = self._grounded(rows, every) if ground else self.mat
+        if self.ranks > 1 and self.holds is None:
+            self.range = self._constant_null(rows)
         if self.pc is None:
             factor = factor_options(self.kind, self.ranks)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
@@ -181,6 +186,8 @@ class DirectPC:
                                                self.comp_of_row, self.n_comp)
         else:
             null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp)
+            if null.any() and not self.mat.getTransposeNullSpace().handle:
+                self.range = RangeCheck(self.comp_of_row, null, Collective(self.mat.getComm()))
         self.null_components = int(null.sum())
         if not null.any():
             return self.mat
@@ -194,12 +201,25 @@ class DirectPC:
         self.G.assemble()
         return self.G
 
+    def _constant_null(self, rows):
+        """Several ranks (nothing grounded): a :class:`.consistency.RangeCheck` of the constant where every row sum
+        vanishes on every rank and no null space is attached, else None."""
+        mat, coll = self.mat, Collective(self.mat.getComm())
+        attached = mat.getNullSpace().handle or mat.getTransposeNullSpace().handle
+        vanish = nullspace.vanishing(row_sums(rows.indptr, rows.data), rows.diagonal(k=mat.getOwnershipRange()[0]))
+        if attached or not coll.min_array(np.array([vanish.all()], dtype=np.int64))[0]:
+            return None
+        return RangeCheck(np.zeros(rows.shape[0], dtype=np.int64), np.ones(1, dtype=bool), coll)
+
     def mult(self, x, y):
         """y = (grounded A)^-1 x."""
         self.pc.apply(x, y)
 
     def presolve(self, ksp, b, x, stale=False):
-        """Nothing to start."""
+        """Nothing to start; a named error where b holds a part along null constants the factor found
+        (:mod:`.consistency`)."""
+        if self.range is not None:
+            self.range.check(ksp, b)
         return None
 
     def check(self, probes=0) -> str:

@@ -86,16 +86,24 @@ COARSE_DIRECT_MAX = {2: 400000, 3: 8192}    # coarse rows above which GAMG repla
 COARSE_SCALAR_DIRECT_MAX = 131072           # ... one rank, 2-D aggregation leaves without near null vectors
 COARSE_REDUNDANT_MAX = 16384                # 2-D on several ranks: coarse rows above which a V-cycle replaces the LU
 COARSE_REDUNDANT_LU_MAX = 200000            # ... for Morton leaves and near null vectors, which keep the LU longer
+SAFE_SMOOTHER = {"mg_levels_ksp_chebyshev_esteig": "0,0.1,0,1.5"}   # every coarse V-cycle's Chebyshev smoothers
+# reach 1.5 x GAMG's estimate of the largest eigenvalue (PETSc's 1.1): on 3-D coefficient jumps of 1e6-1e10
+# (scenes.foreign.cubes, 44^3 and 64^3 cells, the paired leaves' two V-cycles) the estimate fell short, the V-cycles'
+# M went indefinite and CG stopped with DIVERGED_INDEFINITE_PC on 8 of 22 layouts; now none does (1.2 left 2 of them
+# failing, 1.3 none). Elsewhere 0-2 more iterations. A better estimate (20 iterations in place of 10) mended the
+# layouts too but took the foreign study's dmda3d at 262 144 rows from 29 to 39 iterations (results/jumps-20261127)
 COARSE_AMG_2D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", "pc_gamg_aggressive_coarsening": "0",
-                 "mg_levels_ksp_max_it": "2", "pc_mg_multiplicative_cycles": "2"}   # two V-cycles, deflated form
+                 "mg_levels_ksp_max_it": "2", "pc_mg_multiplicative_cycles": "2",
+                 **SAFE_SMOOTHER}                                                    # two V-cycles, deflated form
 # Chebyshev(2) on each level (PETSc's default; three served the one V-cycle of the balanced form before): the DMDA
 # program's CG iterations stay (2 ranks: 1024^2 37, 2048^2 39, 512^2 36 against 35; one rank 2048^2 40) and the
 # solve takes 0.86-0.93 of Chebyshev(3)'s at 1024^2 and 2048^2, as much at 512^2; the foreign study's free surface
 # and log-normal matrices at 1M rows on 2 ranks: level (log-normal 42 against 40 iterations) (results/scale-20261126g);
 # Chebyshev(1) took 42 iterations at 2048^2
 LEAF_AMG = {2: 32, 3: 32}                   # default leaf size where the coarse solve at LEAF would be GAMG
-COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0"}    # plain aggregation: 3 fewer iterations
-COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02"}         # aggregation leaves: the balanced form
+COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0",  # plain aggregation: 3 fewer iterations
+              **SAFE_SMOOTHER}
+COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", **SAFE_SMOOTHER}   # aggregation leaves: balanced
 COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
 COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows from which GAMG serves
 BAND_WIDTH = 112                            # one rank: RCM bandwidth up to which LAPACK's band factor serves

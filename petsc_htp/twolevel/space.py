@@ -16,7 +16,8 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from . import coarsespace, dominance, nullspace
+from . import coarsespace, dominance, nullspace, scaling
+from .consistency import RangeCheck
 from .csr import row_sums
 from .leafsolvers import seqaij
 from .spacereuse import DiagonalWatch
@@ -37,7 +38,7 @@ class CoarseSpace:
     def __init__(self, st, make_pc, shared=None):
         lay = st.lay
         self.st, self.values = st, np.zeros(st.w_p.size)
-        self.kept, self.age, self.dropped, self.pinned = None, 0, np.zeros(0, dtype=np.int64), 0
+        self.kept, self.age, self.dropped, self.pinned, self.range = None, 0, np.zeros(0, dtype=np.int64), 0, None
         self.weights = None                  # the flat space's piece vectors where they are not the constants
         self.watch = DiagonalWatch(lay.d_diag, st.coll)                   # W's row scaling
         self.flat = lay.leaves.kind == "aggregation" and st.q <= 1 and not st.extra and not st.fixed
@@ -66,7 +67,7 @@ class CoarseSpace:
 
     def null(self, mat, rows) -> np.ndarray:
         """Null components (``mat``'s attached MatNullSpace, else the row sums of ``rows``, this rank's rows of A in
-        the analysed pattern), and this rank's pieces
+        the analysed pattern: then :attr:`range` checks b), and this rank's pieces
         to ground (a boolean array); the columns of the pieces to drop are kept for :meth:`finish`."""
         st, lay = self.st, self.st.lay
         nsp = mat.getNullSpace()
@@ -78,6 +79,8 @@ class CoarseSpace:
             diag = rows.data[lay.d_src[lay.d_diag]]
             rowsum = row_sums(rows.indptr, rows.data)
             null = nullspace.null_by_rowsums(rowsum, diag, st.comp_of_row, st.n_comp, reduce)
+        found = not nsp.handle and null.any() and not mat.getTransposeNullSpace().handle
+        self.range = RangeCheck(st.comp_of_row, null, st.coll) if found else None     # b's part: :mod:`.consistency`
         drop, ground = nullspace.dropped(null, st.comp_of_piece, st.isolated)
         self.dropped = st.piece_col[st.my_pieces(drop) & st.has_col]
         self.null_components = int(null.sum())
@@ -163,11 +166,10 @@ class CoarseSpace:
         return values
 
     def notes(self, quotients) -> str:
-        """What ``-ksp_view`` adds on the pieces' vectors: |diag|^-1/2 in place of the constants, pinned rows."""
-        text = (f"; pieces take |diag|^-1/2 in place of their constants (a row-scaled operator: Rayleigh quotient "
-                f"{quotients[1]:.2g} against the constant's {quotients[0]:.2g})" if self.weights is not None else "")
-        return text + (f"; {self.pinned} pinned row(s) left out of W (a_ii >= {dominance.PINNED:g} x the row's "
-                       f"off-diagonal sum: a penalty's Dirichlet rows)" if self.pinned else "")
+        """What ``-ksp_view`` adds on the pieces' vectors (:func:`.scaling.note`) and on pinned rows."""
+        return scaling.note(self.weights is not None, quotients) + (
+            f"; {self.pinned} pinned row(s) left out of W (a_ii >= {dominance.PINNED:g} x the row's off-diagonal sum: "
+            f"a penalty's Dirichlet rows)" if self.pinned else "")
 
     def _zeroed(self, dropped) -> np.ndarray:
         """W's entries in the columns ``dropped`` (cached: the null space rarely changes)."""
