@@ -214,8 +214,6 @@ class HTPPC(Inspection):
         """Set up where PETSc holds the PC as set up but this context is not: a second KSPSetFromOptions made a new
         context (petsc4py re-reads -pc_python_type) for operators whose state did not change, so PCSetUp skips it."""
         if self.setup is None:
-            if pc.getOperators()[1].handle == 0:
-                raise RuntimeError("HTPPC.apply called before the PC has an operator")
             self.setUp(pc)
 
     def applyTranspose(self, pc, x, y):

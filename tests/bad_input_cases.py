@@ -54,8 +54,9 @@ def rhs(mat, b):
     return vec
 
 
-def solve(mat, b, opts=(), ksp=None):
-    """(reason, its, relres, ctx) of CG + HTPPC on ``mat`` (a new KSP unless ``ksp``)."""
+def solve(mat, b, opts=(), ksp=None, pmat=None):
+    """(reason, its, relres, ctx) of CG + HTPPC on ``mat`` (a new KSP unless ``ksp``; preconditioned from ``pmat``
+    where given)."""
     db = PETSc.Options()
     base = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 500,
             "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC"}
@@ -69,7 +70,7 @@ def solve(mat, b, opts=(), ksp=None):
         fresh = ksp is None
         if fresh:
             ksp = PETSc.KSP().create(COMM)
-        ksp.setOperators(mat, mat)
+        ksp.setOperators(mat, mat if pmat is None else pmat)
         if fresh:                               # a second KSPSetFromOptions would make a new python context
             ksp.setFromOptions()
         ksp.solve(bv, x)
@@ -85,8 +86,8 @@ def solve(mat, b, opts=(), ksp=None):
     return ksp.getConvergedReason(), ksp.getIterationNumber(), r.norm() / bv.norm(), ksp
 
 
-def outcome(mat, b, opts=(), ksp=None) -> tuple:
-    reason, its, relres, ksp = solve(mat, b, opts, ksp)
+def outcome(mat, b, opts=(), ksp=None, pmat=None) -> tuple:
+    reason, its, relres, ksp = solve(mat, b, opts, ksp, pmat)
     ctx = ksp.getPC().getPythonContext()
     if reason > 0:
         return f"converged {its} {relres:.1e} {ctx.analysis_count} {ctx.numeric_count}", ksp
@@ -345,6 +346,32 @@ def case_inconsistent_factor():
 def case_inconsistent_twolevel():
     """The same, two-level (CG stopped with DIVERGED_DTOL): the same named error."""
     return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900), {"htp_direct_max": 0})[0]
+
+
+def case_inconsistent_then_attached():
+    """The inconsistent case's error, then its advice on the same KSP: the null space attached, the same b."""
+    mat, b = dist(_neumann_square()), np.random.default_rng(1).standard_normal(900)
+    ksp = PETSc.KSP().create(COMM)
+    ksp.setOperators(mat, mat)
+    ksp.setType("cg")
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.setTolerances(rtol=1e-8, max_it=500)
+    ksp.getPC().setType("python")
+    ksp.getPC().setPythonType("petsc_htp.HTPPC")
+    try:
+        outcome(mat, b, {"htp_direct_max": 0}, ksp)
+    except PETSc.Error:
+        pass
+    mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=COMM))
+    return outcome(mat, b, {"htp_direct_max": 0}, ksp)[0]
+
+
+def case_singular_pmat():
+    """A regular operator A + 0.01 I preconditioned from the singular Neumann A (nothing attached) and a b outside
+    A's range: the solve is well posed, so no error (the check reads the KSP's own operator)."""
+    A = _neumann_square()
+    return outcome(dist(A + 0.01 * sp.identity(900)), np.random.default_rng(1).standard_normal(900),
+                   {"htp_direct_max": 0}, pmat=dist(A))[0]
 
 
 def case_second_set_from_options():

@@ -19,7 +19,8 @@ CONVERGED = r"converged \d+ (\d\.\de[-+]\d\d) (\d+) (\d+)"
 
 INCONSISTENT = (r"error: the matrix is singular \(its row sums vanish on 1 connected component\(s\), and no "
                 r"MatNullSpace is attached\) and the right-hand side is not in its range: its part along those "
-                r"components' constants is \d\.\de-\d\d of its norm, above the KSP's rtol 1e-08, .*")
+                r"components' constants is \d\.\de-\d\d of its norm, above the KSP's tolerance \(rtol 1e-08, "
+                r"atol 1e-50\), .*")
 # case -> expected outcome (a regex matched against the whole line) on 1 rank and on 2 ranks
 EXPECTED = {
     "nan": r"error: the matrix has NaN or Inf entries in 1 row\(s\), the first global row 1023;.*",
@@ -54,6 +55,8 @@ EXPECTED = {
     "null_vector_attached": CONVERGED,
     "inconsistent_factor": INCONSISTENT,
     "inconsistent_twolevel": INCONSISTENT,
+    "inconsistent_then_attached": CONVERGED,
+    "singular_pmat": CONVERGED,
     "second_set_from_options": CONVERGED,
     "jumps3d": CONVERGED,
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",

@@ -5,11 +5,30 @@ a MatNullSpace, KSPSolve does not project b, and where b's part along those cons
 x reaches it: CG with one exact factor of the grounded matrix then stepped 1e17 along the constant, its recursive
 residual parted from the true one, and it reported CONVERGED_RTOL at a true relative residual of 7.6 (a 900-row
 Neumann grid, random b; 16 on two ranks). :class:`RangeCheck` raises a named error before such a solve instead, on
-every rank (its sums are collective). PETSc-free but for the KSP's tolerances and b's norm.
+every rank (its sums are collective).
+
+Only components whose every row sum vanishes to rounding count here (:data:`STRICT`, relative to the row's own
+entries): the grounding's test (:data:`.nullspace.NULL_TOL` times the largest diagonal entry) also takes a regular
+matrix whose rows sum to a little of a large diagonal for singular (a Dirichlet square with a 1e11 inclusion), whose
+factor then only serves a little worse, where this check would refuse a solve that converges.
 """
 from __future__ import annotations
 
 import numpy as np
+from petsc4py import PETSc
+
+from .csr import row_sums
+
+STRICT = 1e-12          # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
+
+
+def strictly_null(rows, comp_of_row, null, coll) -> np.ndarray:
+    """``null`` without the components where some row of this rank's ``rows`` (CSR; all its entries, other ranks'
+    columns included) sums to more than :data:`STRICT` of its absolute sum (collective on several ranks)."""
+    loose = np.abs(row_sums(rows.indptr, rows.data)) > STRICT * row_sums(rows.indptr, np.abs(rows.data))
+    bad = np.zeros(null.size)
+    bad[comp_of_row[loose]] = 1.0
+    return null & (coll.max_array(bad) == 0)
 
 
 class RangeCheck:
@@ -17,31 +36,58 @@ class RangeCheck:
 
     Parameters
     ----------
+    rows : scipy.sparse.csr_matrix
+        This rank's rows of the preconditioner's operator (the check reads the KSP's own).
     comp_of_row : numpy.ndarray (n,)
         Connected component of each of this rank's rows, numbered alike on every rank.
     null : numpy.ndarray of bool (C,)
-        Which components are null (their row sums vanish).
+        Which components are null (their row sums vanish); kept where they do to rounding (:func:`strictly_null`).
     coll : Collective
         The matrix's ranks.
     """
 
-    def __init__(self, comp_of_row, null, coll):
+    def __init__(self, rows, comp_of_row, null, coll):
+        null = strictly_null(rows, comp_of_row, null, coll)
         number = np.cumsum(null) - 1                        # each null component's index among them
         self.rows = np.flatnonzero(null[comp_of_row])
         self.comp = number[comp_of_row[self.rows]]
-        self.k, self.coll = int(null.sum()), coll
-        self.size = coll.sum_array(np.bincount(self.comp, minlength=self.k).astype(float))
+        self.k, self.coll, self.seen = int(null.sum()), coll, {}
+        self.size = coll.sum_array(np.bincount(self.comp, minlength=self.k).astype(np.float64))
+        scale = row_sums(rows.indptr, np.abs(rows.data))[self.rows]
+        self.scale = float(np.sqrt(coll.sum_array(np.array([scale @ scale]))[0]))   # ||(|A| z)|| for z below
+
+    def _annihilated(self, amat) -> bool:
+        """Whether the solved operator ``amat`` annihilates the null constants too, z their sum: ||amat z|| at most
+        1e-10 ||(|A| z)|| (a Pmat's components, but the Amat A + 0.01 I is regular; new values since the setup);
+        once per operator and state (collective)."""
+        key = (amat.handle, amat.stateGet())
+        if key not in self.seen:
+            z, y = amat.createVecs()
+            z.set(0.0)
+            z.array[self.rows] = 1.0
+            amat.mult(z, y)
+            self.seen = {key: y.norm() <= 1e-10 * self.scale}
+            z.destroy()
+            y.destroy()
+        return self.seen[key]
 
     def check(self, ksp, b):
         """Raise ValueError where ``b``'s part along the null constants exceeds ``ksp``'s tolerance
-        (max(rtol ||b||, atol), PETSc's default test)."""
-        sums = self.coll.sum_array(np.bincount(self.comp, b.array_r[self.rows], minlength=self.k))
+        (max(rtol ||b||, atol), PETSc's default test); nothing where no component is null, the KSP tests no norm
+        (a smoother's, PREONLY), its operator has a null space attached (the KSP removes that part) or does not
+        annihilate the constants (a regular Amat, the Pmat singular)."""
+        amat = ksp.getOperators()[0]
+        if (not self.k or ksp.getNormType() == PETSc.KSP.NormType.NONE or amat.getNullSpace().handle
+                or amat.getTransposeNullSpace().handle or not self._annihilated(amat)):
+            return
+        sums = np.bincount(self.comp, b.array_r[self.rows], minlength=self.k).astype(np.float64)   # float on every
+        sums = self.coll.sum_array(sums)                                        # rank, also one without such rows
         part, norm = float(np.sqrt(np.sum(sums * sums / self.size))), b.norm()
         rtol, atol = ksp.getTolerances()[:2]
         if part > max(rtol * norm, atol):
             raise ValueError(f"the matrix is singular (its row sums vanish on {self.k} connected component(s), and no "
                              f"MatNullSpace is attached) and the right-hand side is not in its range: its part along "
-                             f"those components' constants is {part / norm:.1e} of its norm, above the KSP's rtol "
-                             f"{rtol:g}, so no solution reaches the tolerance; attach the null space "
-                             f"(Mat.setNullSpace(NullSpace().create(constant=True)): the KSP then removes that part) "
-                             f"or make b sum to zero on each component")
+                             f"those components' constants is {part / norm:.1e} of its norm, above the KSP's "
+                             f"tolerance (rtol {rtol:g}, atol {atol:g}), so no solution reaches it; attach the null "
+                             f"space (Mat.setNullSpace(NullSpace().create(constant=True)), with MAT_SYMMETRIC set: "
+                             f"the KSP then removes that part) or make b sum to zero on each component")

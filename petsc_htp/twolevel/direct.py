@@ -186,8 +186,8 @@ class DirectPC:
                                                self.comp_of_row, self.n_comp)
         else:
             null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp)
-            if null.any() and not self.mat.getTransposeNullSpace().handle:
-                self.range = RangeCheck(self.comp_of_row, null, Collective(self.mat.getComm()))
+            if null.any():
+                self.range = RangeCheck(rows, self.comp_of_row, null, Collective(self.mat.getComm()))
         self.null_components = int(null.sum())
         if not null.any():
             return self.mat
@@ -202,14 +202,10 @@ class DirectPC:
         return self.G
 
     def _constant_null(self, rows):
-        """Several ranks (nothing grounded): a :class:`.consistency.RangeCheck` of the constant where every row sum
-        vanishes on every rank and no null space is attached, else None."""
-        mat, coll = self.mat, Collective(self.mat.getComm())
-        attached = mat.getNullSpace().handle or mat.getTransposeNullSpace().handle
-        vanish = nullspace.vanishing(row_sums(rows.indptr, rows.data), rows.diagonal(k=mat.getOwnershipRange()[0]))
-        if attached or not coll.min_array(np.array([vanish.all()], dtype=np.int64))[0]:
-            return None
-        return RangeCheck(np.zeros(rows.shape[0], dtype=np.int64), np.ones(1, dtype=bool), coll)
+        """Several ranks (nothing grounded): a :class:`.consistency.RangeCheck` of the constant, which holds where
+        every row sum vanishes (collective)."""
+        one = np.ones(1, dtype=bool)
+        return RangeCheck(rows, np.zeros(rows.shape[0], dtype=np.int64), one, Collective(self.mat.getComm()))
 
     def mult(self, x, y):
         """y = (grounded A)^-1 x."""

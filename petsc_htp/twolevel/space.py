@@ -79,8 +79,8 @@ class CoarseSpace:
             diag = rows.data[lay.d_src[lay.d_diag]]
             rowsum = row_sums(rows.indptr, rows.data)
             null = nullspace.null_by_rowsums(rowsum, diag, st.comp_of_row, st.n_comp, reduce)
-        found = not nsp.handle and null.any() and not mat.getTransposeNullSpace().handle
-        self.range = RangeCheck(st.comp_of_row, null, st.coll) if found else None     # b's part: :mod:`.consistency`
+        found = not nsp.handle and null.any()                                          # b's part: :mod:`.consistency`
+        self.range = RangeCheck(rows, st.comp_of_row, null, st.coll) if found else None
         drop, ground = nullspace.dropped(null, st.comp_of_piece, st.isolated)
         self.dropped = st.piece_col[st.my_pieces(drop) & st.has_col]
         self.null_components = int(null.sum())
