@@ -4,7 +4,7 @@ Each rank counts the problems of its own rows; one reduction gives every rank th
 first offending global row, so every rank raises the same error naming the problem (or none does), and
 no rank is left waiting in a collective that another one skipped. Checked: a non-square or empty
 matrix, a rank without rows, NaN or Inf entries, empty rows, missing or zero diagonal entries, negative
-diagonal entries (HTPPC needs an SPD matrix), and, once per nonzero pattern unless the matrix says it is
+diagonal entries (HTPPC needs an SPD matrix), attached null space vectors split unlike the rows, and, once per nonzero pattern unless the matrix says it is
 symmetric, symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y|.
 """
 from __future__ import annotations
@@ -49,8 +49,8 @@ def check_matrix(mat, rows, empty_ok=False) -> None:
            np.flatnonzero(np.diff(rows.indptr) == 0),
            np.flatnonzero(d == 0),
            np.flatnonzero(d < 0)]
-    counts = np.array([b.size for b in bad] + [rows.nnz], dtype=np.int64)
-    first = np.array([b[0] + start if b.size else np.iinfo(np.int64).max for b in bad] + [0], dtype=np.int64)
+    counts = np.array([b.size for b in bad] + [_split_apart(mat, n), rows.nnz], dtype=np.int64)
+    first = np.array([b[0] + start if b.size else np.iinfo(np.int64).max for b in bad] + [0, 0], dtype=np.int64)
     coll = Collective(mat.getComm())
     counts, first = coll.sum_array(counts), coll.min_array(first)
     if counts[-1] == 0:
@@ -60,6 +60,17 @@ def check_matrix(mat, rows, empty_ok=False) -> None:
             where = "" if k == 0 else f" in {counts[k]} row(s), the first global row {first[k]}"
             raise MatrixError(f"the matrix has {what}{where}; HTPPC needs a finite SPD matrix"
                               + (" with every rank owning rows" if k == 0 else ""))
+    if counts[-2]:
+        raise MatrixError(f"the matrix's attached null space or near null space holds vectors whose entries are "
+                          f"split over the ranks unlike the matrix's rows ({counts[-2]} local part(s) differ); make "
+                          f"them with Mat.createVecRight()")
+
+
+def _split_apart(mat, n) -> int:
+    """Vectors of ``mat``'s attached null space and near null space whose local size is not this rank's ``n`` rows
+    (each rank read its own part of them: one rank raised, the others waited in a collective)."""
+    spaces = [space for space in (mat.getNullSpace(), mat.getNearNullSpace()) if space.handle]
+    return sum(vec.getLocalSize() != n for space in spaces for vec in space.getVecs())
 
 
 def check_symmetry(mat) -> None:

@@ -337,6 +337,17 @@ def case_null_vector_attached():
     return outcome(mat, b - (b @ (1 / d)) / ((1 / d) @ (1 / d)) * (1 / d))[0]
 
 
+def case_null_space_split():
+    """The Neumann square's constant attached as a vector split as PETSc splits 900 rows, the matrix's rows split
+    600/300 on two ranks: each rank read its own part, one raised, the other waited in a collective (a hang)."""
+    size, rank = COMM.getSize(), COMM.getRank()
+    mat = dist(_neumann_square(), rows_on=[600, 300] if size == 2 else None)
+    z = PETSc.Vec().createMPI(900, comm=COMM)
+    z.set(1.0 / 30)
+    mat.setNullSpace(PETSc.NullSpace().create(vectors=[z], comm=COMM))
+    return outcome(mat, np.sin(np.arange(900.0)) - np.sin(np.arange(900.0)).mean())[0]
+
+
 def case_inconsistent_factor():
     """A singular Neumann matrix without its null space, b not in its range, one factor of the whole matrix (a band
     on one rank, gathered on two): CG reported CONVERGED_RTOL at a true relative residual of 7.6 (16 on two ranks)."""
