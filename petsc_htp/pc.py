@@ -39,7 +39,7 @@ from .events import event
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .ranksplit import crossing
-from .validation import check_matrix, check_size, check_symmetry
+from .validation import check_attached, check_matrix, check_size, check_symmetry
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows
 from .threads import set_threads
 from .variants import variant_class
@@ -107,6 +107,7 @@ class HTPPC(Inspection):
             self._values = None
             self._threads(opts)
             check_size(P)
+            check_attached(P, coords, density)
             P = self._operator(P)
             with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
                 check_matrix(P, A, empty_ok=opts.variant == "twolevel")  # a named error on every rank, or none

@@ -20,6 +20,8 @@ def lines(ctx) -> list:
     out = [f"HTPPC, variant {opts.variant}: {ctx.variant.title}{state}"]
     if ctx.variant.model:
         out.append(f"  model: {ctx.variant.model}")
+    if getattr(ctx.variant, "note", ""):
+        out.append(f"  {ctx.variant.note}")
     if ctx.setup is None:
         return out
     out += ["  " + line for line in ctx.setup.describe() + describe_split(ctx.cut)]

@@ -73,6 +73,20 @@ def _split_apart(mat, n) -> int:
     return sum(vec.getLocalSize() != n for space in spaces for vec in space.getVecs())
 
 
+def check_attached(mat, coords, density) -> None:
+    """Raise :class:`MatrixError` on every rank where :func:`petsc_htp.attach` stored coordinates or densities on
+    some ranks of ``mat`` but not on all (``coords``, ``density``: this rank's, None where absent): the ranks would
+    build different leaves and wait in different collectives (collective on several ranks)."""
+    coll = Collective(mat.getComm())
+    if coll.size == 1:
+        return
+    have = coll.sum_array(np.array([coords is not None, density is not None], dtype=np.int64))
+    for what, count in zip(("coordinates", "densities"), have):
+        if 0 < count < coll.size:
+            raise MatrixError(f"{what} are attached on {count} of the {coll.size} ranks only: call petsc_htp.attach "
+                              f"on every rank of a parallel matrix")
+
+
 def check_symmetry(mat) -> None:
     """Raise :class:`MatrixError` (every rank) when a random probe shows ``mat`` is not symmetric; nothing when
     the matrix is known to be symmetric (MAT_SYMMETRIC). Collective."""

@@ -56,6 +56,7 @@ class TwoLevel:
     in place."""
 
     model = None
+    note = ""                                      # what -ksp_view adds (coordinates ignored)
     title = "two-level preconditioner: leaf solves, a coarse space per leaf, Galerkin coarse operator (no network)"
 
     def __init__(self, opts, prefix=""):
@@ -86,6 +87,7 @@ class TwoLevel:
                 "-htp_coarse eig (the default) or const")
         from .events import phase                       # petsc4py: not at import (the fast path imports none)
         times = {}
+        coords = self._followed(mat, A, coords)
         with phase("HTPChoice", times, "choice"):
             kind = self.direct(mat, A, coords)
         if kind is not None:
@@ -99,6 +101,20 @@ class TwoLevel:
             setup = TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
         setup.analysis_ms += times["choice"]           # -ksp_view's analysis: the choice (a trial) included
         return setup
+
+    def _followed(self, mat, A, coords):
+        """``coords``, or None where coupled rows lie far apart in them (:mod:`.twolevel.coordcheck`: coordinates
+        in another order than the rows; :attr:`note` says so; collective)."""
+        from .collective import Collective
+        from .twolevel.coordcheck import FAR, spread
+
+        self.note = ""
+        far = 0.0 if coords is None else spread(A, mat.getOwnershipRange()[0], coords, Collective(mat.getComm()))
+        if far <= FAR:
+            return coords
+        self.note = (f"coordinates ignored: coupled rows lie {far:.0f} spacings apart in them (median), so they do "
+                     f"not follow the rows; the leaves come from the matrix")
+        return None
 
     def direct(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``), or None: the two-level method

@@ -348,6 +348,33 @@ def case_null_space_split():
     return outcome(mat, np.sin(np.arange(900.0)) - np.sin(np.arange(900.0)).mean())[0]
 
 
+def case_coordinates_on_some_ranks():
+    """Coordinates attached on the first rank only (one rank: on every rank): the ranks took different collective
+    paths and the solve hung."""
+    import petsc_htp
+
+    A, b = dmda(2, 64, 1e3, 0)
+    mat = dist(A)
+    if COMM.getRank() == 0:
+        lo, hi = mat.getOwnershipRange()
+        grid = np.stack(np.meshgrid(np.arange(64.0), np.arange(64.0), indexing="ij"), -1).reshape(-1, 2)
+        petsc_htp.attach(mat, grid[lo:hi])
+    return outcome(mat, b)[0]
+
+
+def case_shuffled_coordinates():
+    """Coordinates in another order than the rows: Morton leaves of rows that share no coupling made every row a
+    piece of its own and a coarse LU of about N rows (tens of seconds at 10 000 rows); now they are ignored."""
+    import petsc_htp
+
+    A, b = dmda(2, 100, 1e3, 0)
+    mat = dist(A)
+    grid = np.stack(np.meshgrid(np.arange(100.0), np.arange(100.0), indexing="ij"), -1).reshape(-1, 2)
+    petsc_htp.attach(mat, grid[np.random.default_rng(0).permutation(10000)])
+    text, ksp = outcome(mat, b)
+    return f"{text}; {ksp.getPC().getPythonContext().variant.note}"
+
+
 def case_inconsistent_factor():
     """A singular Neumann matrix without its null space, b not in its range, one factor of the whole matrix (a band
     on one rank, gathered on two): CG reported CONVERGED_RTOL at a true relative residual of 7.6 (16 on two ranks)."""

@@ -56,6 +56,12 @@ EXPECTED = {
     "inconsistent_factor": INCONSISTENT,
     "inconsistent_twolevel": INCONSISTENT,
     "inconsistent_then_attached": CONVERGED,
+    "coordinates_on_some_ranks": {1: CONVERGED,
+                                  2: r"error: coordinates are attached on 1 of the 2 ranks only: call petsc_htp.attach "
+                                     r"on every rank of a parallel matrix"},
+    "shuffled_coordinates": (r"converged \d+ \d\.\de-(09|1\d) 1 1; coordinates ignored: coupled rows lie \d+ "
+                             r"spacings apart in them \(median\), so they do not follow the rows; the leaves come "
+                             r"from the matrix"),
     "null_space_split": {1: CONVERGED,
                          2: r"error: the matrix's attached null space or near null space holds vectors whose "
                             r"entries are split over the ranks unlike the matrix's rows \(2 local part\(s\) differ\); "
