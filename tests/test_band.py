@@ -169,3 +169,19 @@ def test_many_null_components_are_grounded_at_once():
     reason, its, relres, ksp, _ = solve(S, b)
     assert reason > 0 and relres <= 1e-8 and its <= 5, (reason, its, relres)
     assert "null pivot(s) grounded" in lines(ksp)
+
+
+def test_the_view_names_the_pc_that_runs_and_serves_a_leaf_pc_that_is_no_factor():
+    """-htp_leaf_pc_type icc on a matrix chosen for the band: -ksp_view names PETSc's ICC, which runs (its view had
+    said 'one banded Cholesky factor (one iteration)'); -htp_leaf_pc_type jacobi under the two-level method: the view
+    (its memory line read the leaf PC's factor, which a Jacobi PC has not) no longer raises."""
+    A, b = foreign.dmda(2, 40, 1e3, 0)
+    reason, its, relres, ksp, _ = solve(sp.csr_matrix(A), b, htp_leaf_pc_type="icc")
+    assert reason > 0 and its > 1 and relres <= 1e-8
+    assert "PETSc's icc of the whole matrix, as -" in lines(ksp) and "htp_leaf_pc_type asks" in lines(ksp), lines(ksp)
+    A, b = foreign.dmda(2, 150, 1e3, 0)
+    reason, its, relres, ksp, _ = solve(sp.csr_matrix(A), b, htp_leaf_pc_type="jacobi")
+    assert reason > 0 and relres <= 1e-8 and "memory on this rank" in lines(ksp), lines(ksp)
+    viewer = PETSc.Viewer().createASCII("/dev/null", comm=PETSc.COMM_SELF)
+    ksp.view(viewer)
+    viewer.destroy()

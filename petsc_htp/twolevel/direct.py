@@ -22,7 +22,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from . import nullspace
+from . import directview, nullspace
 from ..collective import Collective
 from .band import Band, BandPC
 from .consistency import RangeCheck
@@ -238,31 +238,8 @@ class DirectPC:
         return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
 
     def describe(self) -> list:
-        """Lines for ``-ksp_view``."""
-        n = self.mat.getSize()[0]
-        what = ("one sparse Cholesky factor (one iteration)" if self.kind == "cholesky" else
-                "one banded Cholesky factor (one iteration)" if self.kind == "band" else
-                "ICC(0), whose iterations cost less here than an exact factor or the two-level method")
-        if self.kind in BLOCKED:
-            what = ("ICC(0) of each rank's diagonal block (PCBJACOBI)" if self.kind == "bjacobi" else
-                    f"ICC(0) of each rank's block grown by {OVERLAP} layers (PCASM, basic)")
-            where = f" (options -{self.prefix}sub_*)"
-            memory = f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
-        elif self.ranks > 1:
-            factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if self.kind == "band" else
-                      f"{FACTORS[self.kind]['pc_type']}, {self.ordering} ordering")
-            where = (f", gathered and factored on each of the {self.ranks} ranks (PCREDUNDANT: "
-                     f"{factor}; options -{self.prefix}redundant_*)")
-            memory = f"memory: {self.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
-        else:
-            band = self._band()
-            what_factor = (band.describe() if band is not None else
-                           f"{self.pc.getFactorSolverType()} {self.pc.getType()}, {self.ordering} ordering")
-            where = f" ({what_factor}; options -{self.prefix}*)"
-            memory = f"memory: {self.nbytes / max(n, 1):.0f} bytes per unknown"
-        return [f"whole matrix: {what}; {n} rows, {self.why or 'within the sizes where it is cheapest'}{where}"
-                + (f"; {self.null_components} null component(s) grounded" if self.null_components else ""),
-                f"setup ms: analysis {self.analysis_ms:.1f}; factor {self.times.get('factor', 0.0):.1f}", memory]
+        """Lines for ``-ksp_view`` (:func:`.directview.describe`)."""
+        return directview.describe(self, OVERLAP)
 
     def destroy(self):
         """Free the factor, the grounded copy and a trial PC not taken."""

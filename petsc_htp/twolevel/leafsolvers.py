@@ -16,6 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .csr import indptr_of, row_entries
+from .inner import held
 
 EXACT = ("cholesky", "lu")        # leaf PC types that solve D exactly
 
@@ -104,7 +105,7 @@ class ExactLeaves:
 
     def nnz(self) -> int:
         """Stored values of D and its factor."""
-        return int(self.f.values.size + self.f.pc.getFactorMatrix().getInfo()["nz_used"])
+        return int(self.f.values.size + held(self.f.pc))
 
     def describe(self) -> str:
         kind = "exact solves" if self.exact else "incomplete-factor solves"
@@ -176,7 +177,7 @@ class OverlappingLeaves:
 
     def nnz(self) -> int:
         """Stored values of the grown blocks and their factor."""
-        return int(self.f.values.size + self.f.pc.getFactorMatrix().getInfo()["nz_used"])
+        return int(self.f.values.size + held(self.f.pc))
 
     def describe(self) -> str:
         grown = self.member.size / self.n

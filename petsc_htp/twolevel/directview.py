@@ -1,0 +1,38 @@
+"""``-ksp_view``'s lines for one factor of the whole matrix (:class:`.direct.DirectPC`): what runs, on how many
+rows and why, where its options go, its setup times and memory. It names the PC that runs, which options under the
+prefix may have made other than the one chosen (``-htp_leaf_pc_type icc`` on a matrix chosen for the band)."""
+from __future__ import annotations
+
+BLOCKED_TEXT = {"bjacobi": "ICC(0) of each rank's diagonal block (PCBJACOBI)",
+                "asm": "ICC(0) of each rank's block grown by {overlap} layers (PCASM, basic)"}
+CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (one iteration)",
+               "band": "one banded Cholesky factor (one iteration)",
+               "icc": "ICC(0), whose iterations cost less here than an exact factor or the two-level method"}
+CHOSEN_TYPE = {"cholesky": "cholesky", "band": "python", "icc": "icc"}   # the PC type each choice makes
+
+
+def describe(d, overlap) -> list:
+    """The lines of the :class:`.direct.DirectPC` ``d`` (``overlap``: the layers PCASM's blocks grow by)."""
+    n = d.mat.getSize()[0]
+    what = CHOSEN_TEXT.get(d.kind, "")
+    if d.kind in BLOCKED_TEXT:
+        what = BLOCKED_TEXT[d.kind].format(overlap=overlap)
+        where = f" (options -{d.prefix}sub_*)"
+        memory = f"memory on this rank: {d.nbytes / max(d.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
+    elif d.ranks > 1:
+        factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if d.kind == "band" else
+                  f"{CHOSEN_TYPE[d.kind]}, {d.ordering} ordering")
+        where = (f", gathered and factored on each of the {d.ranks} ranks (PCREDUNDANT: "
+                 f"{factor}; options -{d.prefix}redundant_*)")
+        memory = f"memory: {d.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
+    else:
+        band, kind = d._band(), d.pc.getType()
+        if kind != CHOSEN_TYPE[d.kind]:                         # an option under the prefix made another PC
+            what = f"PETSc's {kind} of the whole matrix, as -{d.prefix}pc_type asks (chosen: {CHOSEN_TEXT[d.kind]})"
+        ordering = f", {d.ordering} ordering" if d.ordering else ""
+        what_factor = band.describe() if band is not None else f"{d.pc.getFactorSolverType()} {kind}{ordering}"
+        where = f" ({what_factor}; options -{d.prefix}*)"
+        memory = f"memory: {d.nbytes / max(n, 1):.0f} bytes per unknown"
+    return [f"whole matrix: {what}; {n} rows, {d.why or 'within the sizes where it is cheapest'}{where}"
+            + (f"; {d.null_components} null component(s) grounded" if d.null_components else ""),
+            f"setup ms: analysis {d.analysis_ms:.1f}; factor {d.times.get('factor', 0.0):.1f}", memory]
