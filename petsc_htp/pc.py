@@ -197,7 +197,8 @@ class HTPPC(Inspection):
 
     def apply(self, pc, x, y):
         """y = M x (or D^-1 x under an active Jacobi fallback)."""
-        self._ready(pc)
+        if self.setup is None:          # a second KSPSetFromOptions's new context, which PCSetUp skips (see preSolve)
+            self.setUp(pc)
         self._ev_apply.begin()
         try:
             size = x.getLocalSize()
@@ -211,21 +212,17 @@ class HTPPC(Inspection):
         finally:
             self._ev_apply.end()
 
-    def _ready(self, pc):
-        """Set up where PETSc holds the PC as set up but this context is not: a second KSPSetFromOptions made a new
-        context (petsc4py re-reads -pc_python_type) for operators whose state did not change, so PCSetUp skips it."""
-        if self.setup is None:
-            self.setUp(pc)
-
     def applyTranspose(self, pc, x, y):
         """M is symmetric: same as :meth:`apply`."""
         self.apply(pc, x, y)
 
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
-        raised before its postSolve kept are given back first."""
+        raised before its postSolve kept are given back first; a context set up nowhere yet sets itself up (a second
+        KSPSetFromOptions makes a new one, petsc4py reading -pc_python_type again, and PETSc skips PCSetUp)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
-        self._ready(pc)
+        if self.setup is None:
+            self.setUp(pc)
         if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
@@ -243,8 +240,7 @@ class HTPPC(Inspection):
         """Free the analysis and its setups (PETSc objects included)."""
         if self.analysis is not None and self.variant is not None:
             self.variant.destroy(self.analysis)
-        self.analysis = self.setup = None
-        self._pattern = self._values = None
+        self.analysis = self.setup = self._pattern = self._values = None
         for mat in self._retired:
             mat.destroy()
         self._retired = []
