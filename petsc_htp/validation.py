@@ -75,16 +75,21 @@ def _split_apart(mat, n) -> int:
 
 def check_attached(mat, coords, density) -> None:
     """Raise :class:`MatrixError` on every rank where :func:`petsc_htp.attach` stored coordinates or densities on
-    some ranks of ``mat`` but not on all (``coords``, ``density``: this rank's, None where absent): the ranks would
-    build different leaves and wait in different collectives (collective on several ranks)."""
+    some ranks of ``mat`` but not on all, or coordinates of different dimensions (``coords``, ``density``: this rank's,
+    None where absent): the ranks would build different leaves and wait in different collectives (collective on
+    several ranks; at a setup every rank runs: PETSc sets up only the ranks whose operator changed)."""
     coll = Collective(mat.getComm())
     if coll.size == 1:
         return
+    width = -1 if coords is None else coords.shape[1]
     have = coll.sum_array(np.array([coords is not None, density is not None], dtype=np.int64))
+    widths = coll.max_array(np.array([width, -width if width >= 0 else -99], dtype=np.int64))
     for what, count in zip(("coordinates", "densities"), have):
         if 0 < count < coll.size:
             raise MatrixError(f"{what} are attached on {count} of the {coll.size} ranks only: call petsc_htp.attach "
                               f"on every rank of a parallel matrix")
+    if have[0] and widths[0] != -widths[1]:
+        raise MatrixError(f"coordinates of {-widths[1]} and {widths[0]} dimensions are attached on different ranks")
 
 
 def check_symmetry(mat) -> None:

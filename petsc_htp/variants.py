@@ -112,8 +112,8 @@ class TwoLevel:
         far = 0.0 if coords is None else spread(A, mat.getOwnershipRange()[0], coords, Collective(mat.getComm()))
         if far <= FAR:
             return coords
-        self.note = (f"coordinates ignored: coupled rows lie {far:.0f} spacings apart in them (median), so they do "
-                     f"not follow the rows; the leaves come from the matrix")
+        self.note = (f"coordinates ignored: coupled rows lie {far:.2f} as far apart in them as rows at random "
+                     f"(medians), so they do not follow the rows; the leaves come from the matrix")
         return None
 
     def direct(self, mat, A, coords):

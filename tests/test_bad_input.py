@@ -59,9 +59,9 @@ EXPECTED = {
     "coordinates_on_some_ranks": {1: CONVERGED,
                                   2: r"error: coordinates are attached on 1 of the 2 ranks only: call petsc_htp.attach "
                                      r"on every rank of a parallel matrix"},
-    "shuffled_coordinates": (r"converged \d+ \d\.\de-(09|1\d) 1 1; coordinates ignored: coupled rows lie \d+ "
-                             r"spacings apart in them \(median\), so they do not follow the rows; the leaves come "
-                             r"from the matrix"),
+    "shuffled_coordinates": (r"converged \d+ \d\.\de-(09|1\d) 1 1; coordinates ignored: coupled rows lie "
+                             r"\d\.\d\d as far apart in them as rows at random \(medians\), so they do not follow "
+                             r"the rows; the leaves come from the matrix"),
     "null_space_split": {1: CONVERGED,
                          2: r"error: the matrix's attached null space or near null space holds vectors whose "
                             r"entries are split over the ranks unlike the matrix's rows \(2 local part\(s\) differ\); "

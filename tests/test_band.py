@@ -179,6 +179,8 @@ def test_the_view_names_the_pc_that_runs_and_serves_a_leaf_pc_that_is_no_factor(
     reason, its, relres, ksp, _ = solve(sp.csr_matrix(A), b, htp_leaf_pc_type="icc")
     assert reason > 0 and its > 1 and relres <= 1e-8
     assert "PETSc's icc of the whole matrix, as -" in lines(ksp) and "htp_leaf_pc_type asks" in lines(ksp), lines(ksp)
+    reason, its, relres, ksp, _ = solve(sp.csr_matrix(A), b, htp_leaf_pc_type="jacobi")   # the whole matrix's too
+    assert reason > 0 and "memory: 0 bytes per unknown" in lines(ksp), lines(ksp)
     A, b = foreign.dmda(2, 150, 1e3, 0)
     reason, its, relres, ksp, _ = solve(sp.csr_matrix(A), b, htp_leaf_pc_type="jacobi")
     assert reason > 0 and relres <= 1e-8 and "memory on this rank" in lines(ksp), lines(ksp)

@@ -27,7 +27,7 @@ from ..collective import Collective
 from .band import Band, BandPC
 from .consistency import RangeCheck
 from .csr import row_sums
-from .inner import configured_pc, set_up
+from .inner import configured_pc, held, set_up
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
@@ -227,15 +227,16 @@ class DirectPC:
     def nbytes(self) -> int:
         """Bytes of the factor (on several ranks: of the whole matrix's values, which every rank gathers and factors;
         PCREDUNDANT does not show its factor)."""
-        if self.kind in BLOCKED:
-            sub = self.pc.getBJacobiSubKSP() if self.kind == "bjacobi" else self.pc.getASMSubKSP()
-            return int(8 * sub[0].getPC().getFactorMatrix().getInfo()["nz_used"])
-        if self.ranks > 1:
+        kind = self.pc.getType()                     # options under the prefix may have made another PC
+        if kind in BLOCKED:
+            sub = self.pc.getBJacobiSubKSP() if kind == "bjacobi" else self.pc.getASMSubKSP()
+            return 8 * held(sub[0].getPC())
+        if self.ranks > 1 and self.kind not in BLOCKED:
             return self.gathered
         band = self._band()
         if band is not None:
             return band.band.nbytes if band.band is not None else 0
-        return int(8 * self.pc.getFactorMatrix().getInfo()["nz_used"])
+        return 8 * held(self.pc)
 
     def describe(self) -> list:
         """Lines for ``-ksp_view`` (:func:`.directview.describe`)."""
