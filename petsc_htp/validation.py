@@ -4,8 +4,9 @@ Each rank counts the problems of its own rows; one reduction gives every rank th
 first offending global row, so every rank raises the same error naming the problem (or none does), and
 no rank is left waiting in a collective that another one skipped. Checked: a non-square or empty
 matrix, a rank without rows, NaN or Inf entries, empty rows, missing or zero diagonal entries, negative
-diagonal entries (HTPPC needs an SPD matrix), attached null space vectors split unlike the rows, and, once per nonzero pattern unless the matrix says it is
-symmetric, symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y|.
+diagonal entries (HTPPC needs an SPD matrix), attached null space vectors split unlike the rows, coordinates attached
+on some ranks only (:func:`check_attached`), and, once per nonzero pattern unless the matrix says it is symmetric,
+symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y|.
 """
 from __future__ import annotations
 

@@ -22,10 +22,10 @@ from .csr import row_sums
 STRICT = 1e-12          # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
 
 
-def strictly_null(rows, comp_of_row, null, coll) -> np.ndarray:
+def strictly_null(rows, comp_of_row, null, coll, absolute) -> np.ndarray:
     """``null`` without the components where some row of this rank's ``rows`` (CSR; all its entries, other ranks'
-    columns included) sums to more than :data:`STRICT` of its absolute sum (collective on several ranks)."""
-    loose = np.abs(row_sums(rows.indptr, rows.data)) > STRICT * row_sums(rows.indptr, np.abs(rows.data))
+    columns included) sums to more than :data:`STRICT` of its ``absolute`` sum (collective on several ranks)."""
+    loose = np.abs(row_sums(rows.indptr, rows.data)) > STRICT * absolute
     bad = np.zeros(null.size)
     bad[comp_of_row[loose]] = 1.0
     return null & (coll.max_array(bad) == 0)
@@ -47,13 +47,14 @@ class RangeCheck:
     """
 
     def __init__(self, rows, comp_of_row, null, coll):
-        null = strictly_null(rows, comp_of_row, null, coll)
+        absolute = row_sums(rows.indptr, np.abs(rows.data))
+        null = strictly_null(rows, comp_of_row, null, coll, absolute)
         number = np.cumsum(null) - 1                        # each null component's index among them
         self.rows = np.flatnonzero(null[comp_of_row])
         self.comp = number[comp_of_row[self.rows]]
         self.k, self.coll, self.seen = int(null.sum()), coll, {}
         self.size = coll.sum_array(np.bincount(self.comp, minlength=self.k).astype(np.float64))
-        scale = row_sums(rows.indptr, np.abs(rows.data))[self.rows]
+        scale = absolute[self.rows]
         self.scale = float(np.sqrt(coll.sum_array(np.array([scale @ scale]))[0]))   # ||(|A| z)|| for z below
 
     def _annihilated(self, amat) -> bool:
