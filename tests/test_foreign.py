@@ -863,7 +863,8 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
     """examples/matrix_file.py, PETSc's ex10 pattern: a foreign-study case (P1 triangles, nodes at random) written to a
     PETSc binary file on two ranks and loaded again with MatLoad; HTPPC by options alone solves both the same way, and
     the no-flux case gets the constant null space attached. The nodes' random numbering cuts half the couplings
-    between the ranks: -ksp_view says so, with advice (:mod:`petsc_htp.ranksplit`)."""
+    between the ranks: -ksp_view says so, with advice (:mod:`petsc_htp.ranksplit`), and names the gathered factor
+    an option asks for."""
     path = tmp_path / "tri.petsc"
     script = EXAMPLE.parent / "matrix_file.py"
     flags = (*HTPPC_FLAGS, "-htp_direct_max", "0")        # the two-level method (not the gathered ICC(0))
@@ -883,6 +884,8 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
     small = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS)    # the gathered factor: no leaves
     assert small.returncode == 0 and "gathered and factored on each of the 2 ranks" in small.stdout, small.stdout
     assert "join rows of two ranks" not in small.stdout, small.stdout
+    asked = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS, "-htp_leaf_redundant_pc_type", "cholesky")
+    assert asked.returncode == 0 and "PETSc's cholesky, as -htp_leaf_redundant_pc_type asks" in asked.stdout, asked.stdout
     proc = _mpirun(2, script, "-case", "neumann", "-n", "4096", *HTPPC_FLAGS)
     assert proc.returncode == 0 and "constant null space attached" in proc.stdout, proc.stdout + proc.stderr
 

@@ -1,7 +1,10 @@
 """``-ksp_view``'s lines for one factor of the whole matrix (:class:`.direct.DirectPC`): what runs, on how many
 rows and why, where its options go, its setup times and memory. It names the PC that runs, which options under the
-prefix may have made other than the one chosen (``-htp_leaf_pc_type icc`` on a matrix chosen for the band)."""
+prefix may have made other than the one chosen (``-htp_leaf_pc_type icc`` on a matrix chosen for the band,
+``-htp_leaf_redundant_pc_type`` on several ranks)."""
 from __future__ import annotations
+
+from petsc4py import PETSc
 
 BLOCKED_TEXT = {"bjacobi": "ICC(0) of each rank's diagonal block (PCBJACOBI)",
                 "asm": "ICC(0) of each rank's block grown by {overlap} layers (PCASM, basic)"}
@@ -20,8 +23,11 @@ def describe(d, overlap) -> list:
         where = f" (options -{d.prefix}sub_*)"
         memory = f"memory on this rank: {d.nbytes / max(d.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
     elif d.ranks > 1:
+        asked = PETSc.Options(d.prefix).getString("redundant_pc_type", CHOSEN_TYPE[d.kind])
         factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if d.kind == "band" else
                   f"{CHOSEN_TYPE[d.kind]}, {d.ordering} ordering")
+        if asked != CHOSEN_TYPE[d.kind]:              # (PCREDUNDANT's inner PC has no getter in petsc4py)
+            factor = f"PETSc's {asked}, as -{d.prefix}redundant_pc_type asks (chosen: {factor})"
         where = (f", gathered and factored on each of the {d.ranks} ranks (PCREDUNDANT: "
                  f"{factor}; options -{d.prefix}redundant_*)")
         memory = f"memory: {d.nbytes / n:.0f} bytes per unknown of values on every rank, and their factor"
