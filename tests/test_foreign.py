@@ -784,6 +784,22 @@ def test_new_leaves_when_a_severe_jump_moves_and_not_otherwise(n):
         assert reason > 0 and ctx.analysis_count == before + 1, (reason, relres)
 
 
+def test_kept_leaves_whose_couplings_moved_get_their_coarse_v_cycles_anew():
+    """A 3-D DMDA frame whose inclusions moved keeps its leaves the first time (never measured what old ones cost),
+    and the coarse GAMG V-cycles, which PETSc would keep with their interpolation for E's new values, coarsen E anew
+    (CoarseSolve.renew): 34 CG iterations at 28^3 against 102 with the old interpolation."""
+    A0, b = foreign.dmda(3, 28, 1e3, 0)
+    reason, its, _, ksp, mat = solve(A0, b)
+    ctx = ksp.getPC().getPythonContext()
+    assert reason > 0 and ctx.analysis.coarse.pc.getType() == "gamg", lines(ksp)
+    A1, _ = foreign.dmda(3, 28, 1e3, 1)
+    mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
+    mat.assemble()
+    reason, moved_its, relres, _, _ = solve(A1, b, mat=mat, ksp=ksp)
+    assert ctx.analysis_count == 1 and ctx.numeric_count == 2 and not ctx.analysis.coarse.renew
+    assert reason > 0 and relres <= 1e-8 and moved_its <= 40, (its, moved_its)
+
+
 def test_leaves_are_kept_while_a_new_analysis_would_not_pay():
     """keeps_leaves: extra iterations keep them while they cost no more than the analysis took; after one solve,
     what old leaves cost the last time values moved decides (never measured: they are tried)."""

@@ -95,7 +95,8 @@ class TwoLevelPC:
         (:func:`.spacereuse.keeps_leaves`; ``penalty``: what old leaves cost the last time values moved)."""
         if self.st.fixed != nearnull.count(self.mat, self.st.bs):
             return True
-        if not self.st.moved(rows):
+        self.coarse.renew = self.st.moved(rows)             # kept leaves then get their coarse AMG anew
+        if not self.coarse.renew:
             return False
         return self.st.jumped(rows) or not keeps_leaves(self.analysis_ms, self.leaf_its, self.ms_per_it, penalty)
 
