@@ -152,12 +152,13 @@ def _converted(mat) -> PETSc.Mat:
 
 
 def aij_operator(mat, previous=None) -> PETSc.Mat:
-    """``mat`` itself when it is AIJ, else an AIJ copy of it (BAIJ, SBAIJ: both triangles) with its null spaces,
+    """``mat`` itself when it is its communicator's AIJ, else an AIJ copy of it (BAIJ, SBAIJ: both triangles; MPIAIJ
+    on one rank, whose products with the coarse space's SEQAIJ PETSc does not support) with its null spaces,
     near null space and known symmetry: PETSc's sparse products take AIJ only. ``previous``, an earlier copy, takes
     the new values when its pattern is the same (the same Mat: the analysis is reused); otherwise a new copy comes
     back and ``previous`` is left to the caller (an analysis may still hold it). (PETSc's own MAT_REUSE_MATRIX
     conversion from SBAIJ left a factor of the copy reading freed memory.)"""
-    if mat.getType() in ("seqaij", "mpiaij"):
+    if mat.getType() == _aij_type(mat):
         return mat
     out = _converted(mat)
     if previous is not None and all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ())):
