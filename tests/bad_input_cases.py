@@ -340,7 +340,7 @@ def case_null_vector_attached():
 def case_null_space_split():
     """The Neumann square's constant attached as a vector split as PETSc splits 900 rows, the matrix's rows split
     600/300 on two ranks: each rank read its own part, one raised, the other waited in a collective (a hang)."""
-    size, rank = COMM.getSize(), COMM.getRank()
+    size = COMM.getSize()
     mat = dist(_neumann_square(), rows_on=[600, 300] if size == 2 else None)
     z = PETSc.Vec().createMPI(900, comm=COMM)
     z.set(1.0 / 30)

@@ -996,3 +996,38 @@ def test_penalty_rows_are_pinned_out_of_the_coarse_space():
         assert f"{pinned.size} pinned row(s) left out of W" in "\n".join(ksp.getPC().getPythonContext().setup.describe())
         its.append(n)
     assert abs(its[0] - its[1]) <= 1, its
+
+
+def test_a_penalty_beside_a_coefficient_jump_is_pinned_and_no_row_scaling():
+    """A penalty of 1e10 on the Dirichlet rows of a checkerboard of conductivities 1 and 1e4 (5-point finite
+    volumes): beside the 1e4 cells a_ii is 1e5-1e6 times its row's off-diagonal sum, short of the 1e8 pinned rows
+    once needed, so those rows stayed in W and in the Rayleigh quotients, whose constant's they made, and the pieces
+    took |diag|^-1/2 (a row-scaled operator). Every penalty row is pinned now, and CG takes the iterations of the
+    same matrix with those rows zeroed (MatZeroRowsColumns' identity rows)."""
+    from petsc_htp.scenes.gallery import face_weights
+
+    side = 128
+    cell = np.add.outer(np.arange(side) * 8 // side, np.arange(side) * 8 // side) % 2
+    k = np.where(cell == 0, 1e4, 1.0)
+    wx, wy, _ = face_weights(k)
+    i = np.arange(side * side).reshape(side, side)
+    rows = np.concatenate([i[:, :-1].ravel(), i[:-1, :].ravel()])
+    cols = np.concatenate([i[:, 1:].ravel(), i[1:, :].ravel()])
+    w = np.concatenate([wx.ravel(), wy.ravel()])
+    K = sp.coo_matrix((-w, (rows, cols)), shape=(side * side,) * 2).tocsr()
+    K = K + K.T
+    K = (K - sp.diags(np.asarray(K.sum(axis=1)).ravel())).tocsr()
+    wall = np.zeros((side, side), dtype=bool)
+    wall[0], wall[-1], wall[:, 0], wall[:, -1] = True, True, True, True
+    wall = wall.ravel()
+    b = np.where(wall, 0.0, 1.0)
+    keep = sp.diags((~wall).astype(float))
+    zeroed = (keep @ K @ keep + sp.diags(wall.astype(float))).tocsr()
+    its = []
+    for A in (zeroed, (K + sp.diags(1e10 * wall)).tocsr()):
+        reason, n, relres, ksp = solve(petsc_mat(A, null=False), b)
+        text = "\n".join(ksp.getPC().getPythonContext().setup.describe())
+        assert reason > 0 and relres <= 1.01e-8 and "in place of their constants" not in text, (reason, n, text)
+        its.append(n)
+    assert f"{wall.sum()} pinned row(s) left out of W" in text, text
+    assert its[1] <= its[0] + 2, its

@@ -103,7 +103,7 @@ class TwoLevelPC:
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
         lay, T, data = self.st.lay, {}, rows.data
-        pinned = dominance.pinned(rows, lay.start)                  # rows W leaves out (a penalty's)
+        solved = dominance.pinned(rows, lay.start, dominance.SOLVED)      # rows their diagonal decides (a penalty's)
         with phase("HTPLeafFactor", T, "leaf"):
             o_values = self.ops.couplings(data)
             ground = self.space.null(self.mat, rows)
@@ -119,7 +119,7 @@ class TwoLevelPC:
                     self.its, weights = [], None
                     if self.space.flat:                         # a null constant stays, an attached vector serves
                         with diagonal_block(self.mat, rows) as block:
-                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block, pinned,
+                            weights, self.quotients = scaling.weights(rows, lay.start, self.st.coll, block, solved,
                                                                       self.mat if self.space.null_components else None)
                     self.space.compute(self.d_values, o_values, self.ops.o_perm_rows,
                                        self._seeds(rows, density), nearnull.vectors(self.mat, self.st.bs), weights)
@@ -129,13 +129,13 @@ class TwoLevelPC:
                 if new_space and self.space.shared:           # the borrowed factor gets D back, also on errors
                     with phase("HTPLeafFactor", T, "leaf"):
                         self.leafsolver.numeric(data)
+        left = dominance.left_out(rows, lay.start, solved, self.space.weights is not None)    # (rows, bound)
         with phase("HTPProducts", T, "products"):
-            self.ops.products(self.space.finish(pinned), self.leafsolver.exact, self.forms.needs_F())
+            self.ops.products(self.space.finish(*left), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):
             self.coarse.setup(self.ops)
             self.forms.settle()
-        self.times = T
-        self.numeric_count += 1
+        self.times, self.numeric_count = T, self.numeric_count + 1
 
     def _seeds(self, rows, density):
         """The learned space's seeds (the coarse network's vectors), else None (smooth seeds)."""
@@ -159,8 +159,7 @@ class TwoLevelPC:
         """A KSPSolve took ``its`` iterations in ``seconds``: kept as the first and the last since the coarse space
         was made (:func:`.spacereuse.keeps`) and since the leaves were (:func:`.spacereuse.keeps_leaves`); the
         deflated form's start ends with the solve."""
-        self.its = self.its[:1] + [its]
-        self.leaf_its = self.leaf_its[:1] + [its]
+        self.its, self.leaf_its = self.its[:1] + [its], self.leaf_its[:1] + [its]
         self.ms_per_it = 1e3 * seconds / max(its, 1)
         self.forms.started = False
 

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from . import coarsespace, dominance, nullspace, scaling
+from . import coarsespace, nullspace, scaling
 from .consistency import RangeCheck
 from .csr import row_sums
 from .leafsolvers import seqaij
@@ -152,12 +152,12 @@ class CoarseSpace:
         w2 = lay.pieces.size if self.weights is None else np.bincount(label, w * w, minlength=lay.pieces.n_pieces)
         self.values[self.mine] = w / np.sqrt(np.maximum(w2[label], 1e-300))
 
-    def finish(self, rows) -> np.ndarray:
-        """W's values with the dropped pieces' columns and the pinned local ``rows`` (:func:`.dominance.pinned`)
-        zeroed (a copy only when some are)."""
+    def finish(self, rows, bound) -> np.ndarray:
+        """W's values with the dropped pieces' columns and the local ``rows`` their diagonal pins (a_ii >= ``bound``
+        times their off-diagonal sum: :func:`.dominance.left_out`) zeroed (a copy only when some are)."""
         pinned = np.zeros(self.st.lay.n, dtype=bool)
         pinned[rows] = True
-        self.pinned = self.st.coll.sum(int(pinned.sum()))
+        self.pinned, self.bound = self.st.coll.sum(int(pinned.sum())), bound
         if not self.dropped.size and not self.pinned:
             return self.values
         values = self.values.copy()
@@ -168,7 +168,7 @@ class CoarseSpace:
     def notes(self, quotients) -> str:
         """What ``-ksp_view`` adds on the pieces' vectors (:func:`.scaling.note`) and on pinned rows."""
         return scaling.note(self.weights is not None, quotients) + (
-            f"; {self.pinned} pinned row(s) left out of W (a_ii >= {dominance.PINNED:g} x the row's off-diagonal sum: "
+            f"; {self.pinned} pinned row(s) left out of W (a_ii >= {self.bound:g} x the row's off-diagonal sum: "
             f"a penalty's Dirichlet rows)" if self.pinned else "")
 
     def _zeroed(self, dropped) -> np.ndarray:

@@ -51,7 +51,7 @@ class Structure:
     """
 
     def __init__(self, mat, rows, coords, cfg, net_rank=None):
-        self.coll = coll = Collective(mat.getComm())
+        self.coll = Collective(mat.getComm())
         self.N = mat.getSize()[0]
         with diagonal_block(mat, rows) as block:
             self._leaves(mat, rows, block, coords, cfg)
