@@ -438,6 +438,17 @@ def case_jumps3d():
     return outcome(dist(A), b, {"htp_direct_max": 0})[0]
 
 
+def case_loose_coarse_cycles():
+    """A coarse GAMG that does not coarsen (``-htp_cs_pc_gamg_threshold 0.3``: one level, a smoother) on a 2-D
+    Laplacian of 22 500 rows: the deflated form, which takes the V-cycles as exact, ran to DIVERGED_ITS on 2-4 ranks
+    (182 iterations on one); the probe's forward error (0.8) now sends it to the balanced form."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (150, 150))
+    A = (sp.kron(sp.identity(150), T) + sp.kron(T, sp.identity(150))).tocsr()
+    b = np.random.default_rng(4).standard_normal(A.shape[0])
+    return outcome(dist(A), b, {"htp_direct_max": 0, "htp_coarse_solver": "gamg",
+                                "htp_cs_pc_gamg_threshold": 0.3})[0]
+
+
 def case_missing_checkpoint():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b,
                    {"htp_variant": "paper", "htp_checkpoint": "/nonexistent/model.pt"})[0]

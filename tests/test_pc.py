@@ -173,7 +173,8 @@ def test_matrix_without_attachments_uses_rcm(tiny_ckpt, options):
     assert reason > 0 and relres <= 1.01e-8
     ctx = ksp.getPC().getPythonContext()
     assert ctx.setup.ordering == "rcm"
-    assert "ordering: rcm" in view_text(ksp)
+    text = view_text(ksp)
+    assert "ordering: rcm" in text and "WARNING: no coordinates attached" in text     # the network reads none
 
 
 def test_n_not_multiple_of_leaf(tiny_ckpt, options):
@@ -210,6 +211,7 @@ def test_view_lines(frame, tiny_ckpt, options):
                    "apply: float32", "setups: 1 analyses (pattern), 1 numeric (values)",
                    "fallback none not needed"):
         assert needle in text, (needle, text)
+    assert "no coordinates attached" not in text
     n_params = HTPNet(HTPConfig(d=32, n_layers=1, heads=4)).n_params()
     assert f"{n_params} parameters" in text
 

@@ -42,6 +42,11 @@ def resolve_device(device: str = "auto") -> torch.device:
     return torch.device(device)
 
 
+BARE = ["WARNING: no coordinates attached: the network, trained on cells with their coordinates, reads none and "
+        "may take more iterations than no preconditioner (a 2-D Laplacian of 4 096 rows: 267 against 198); attach "
+        "them (petsc_htp.attach) or use -htp_variant twolevel"]
+
+
 @dataclass
 class Analysis:
     """The per-pattern half of an HTP setup: ordering, partition and structural features.
@@ -64,6 +69,8 @@ class Analysis:
         Row pointers of the permuted pattern.
     analysis_ms : float
         Wall time of the analysis.
+    bare : bool
+        No coordinates came with the matrix.
     """
 
     perm: np.ndarray
@@ -75,6 +82,7 @@ class Analysis:
     data_map: np.ndarray
     permuted_indptr: np.ndarray
     analysis_ms: float
+    bare: bool = False
 
     @property
     def n(self) -> int:
@@ -134,7 +142,7 @@ class Setup:
                 "apply: float32 (M is linear only to about 1e-7: use CG or FGMRES, not plain GMRES, "
                 "below rtol 1e-6)",
                 f"setup: analysis {self.analysis.analysis_ms:.1f} ms (once per pattern), "
-                f"numeric {self.setup_ms:.1f} ms (network, factors, guard)"]
+                f"numeric {self.setup_ms:.1f} ms (network, factors, guard)"] + BARE * self.analysis.bare
 
     def check(self, probes: int) -> str:
         """Empty when M looks usable, else the reason: non-finite factors or apply, or M indefinite."""
@@ -256,7 +264,7 @@ class HTP:
         part = self.net.cfg.partition(A.shape[0])
         st = input_structure(Ap, part, None if coords is None else np.asarray(coords)[perm])
         return Analysis(perm, name, part, st, A.indptr.copy(), A.indices.copy(), data_map, Ap.indptr,
-                        1e3 * (time.perf_counter() - t0))
+                        1e3 * (time.perf_counter() - t0), coords is None)
 
     @torch.no_grad()
     def numeric(self, analysis: Analysis, A, density=None, shift: float = 0.0, spd_guard: bool = True,

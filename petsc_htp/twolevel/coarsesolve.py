@@ -28,6 +28,9 @@ from . import inner, nearnull, sizing
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
 REFINE_MAX = 3          # the most refinement steps
+CYCLE_TOL = 0.25        # forward error on a probe above which V-cycles taken as exact go to the balanced form (the
+# defaults' two V-cycles 0.05-0.08 on the foreign study's 3-D cases at 64k and 262k rows and the 2-D DMDA at 1M on
+# two ranks; -htp_cs_pc_gamg_threshold 0.3, one level: 0.6, and the deflated form ran to DIVERGED_ITS on 2-4 ranks)
 DIRECT = ("lu", "cholesky", "svd")         # PC types that solve E (also inside PCREDUNDANT: :meth:`CoarseSolve._direct`)
 
 
@@ -42,7 +45,7 @@ class CoarseSolve:
         self.chosen = solver == "auto"
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind, near=st.fixed)   # else balanced (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
-        self.refine, self.error, self.direct, self.general, self.cycles = 0, 0.0, False, False, 1
+        self.refine, self.error, self.direct, self.general, self.cycles, self.loose = 0, 0.0, False, False, 1, False
         self.renew = False      # set where the couplings moved away from kept leaves: a V-cycle made for the old
         # values' E then served poorly (DMDA 3-D, 64 000 rows, new inclusions: 116 CG iterations against 56 anew)
 
@@ -75,11 +78,14 @@ class CoarseSolve:
         inner.set_up(self.pc, self.prefix, self.rest)
         if self.direct:
             self._refinement()
+        elif self.exact:                              # V-cycles taken as exact: the probe tells (:data:`CYCLE_TOL`)
+            self.loose = self._probe() > CYCLE_TOL
 
     @property
     def deflatable(self) -> bool:
-        """Whether the deflated form may take this solve: exact, and exact without refinement."""
-        return self.exact and not self.refine
+        """Whether the deflated form may take this solve: exact, and exact without refinement, and V-cycles that
+        met :data:`CYCLE_TOL` on the probe."""
+        return self.exact and not self.refine and not self.loose
 
     def _direct(self) -> bool:
         """Whether the PC made solves E: a factor, or PCREDUNDANT around one (its inner type from the options, LU
@@ -89,15 +95,13 @@ class CoarseSolve:
             kind = PETSc.Options(self.prefix).getString("redundant_pc_type", "lu")
         return kind in DIRECT
 
-    def _refinement(self):
-        """Measure the solve's forward error on a random probe (collective) and set :attr:`refine`: none up to
-        :data:`REFINE_TOL`, else the fewest steps that take an error e to e^(steps + 1) <= :data:`REFINE_TARGET`, at
-        most :data:`REFINE_MAX`."""
+    def _probe(self) -> float:
+        """The solve's forward error ||c - c0|| / ||c0|| on E c0 = g for a random c0 (collective), kept as
+        :attr:`error`."""
         c0, rng = self._dc.duplicate(), PETSc.Random().create(self.E.getComm())
         try:
             c0.setRandom(rng)
             self.E.mult(c0, self.g)
-            self.refine = 0
             self.apply(self.g, self.c)
             self.c.axpy(-1.0, c0)
             norm = c0.norm()
@@ -105,6 +109,14 @@ class CoarseSolve:
         finally:
             c0.destroy()
             rng.destroy()
+        return self.error
+
+    def _refinement(self):
+        """Measure the solve's forward error on a random probe (:meth:`_probe`) and set :attr:`refine`: none up to
+        :data:`REFINE_TOL`, else the fewest steps that take an error e to e^(steps + 1) <= :data:`REFINE_TARGET`, at
+        most :data:`REFINE_MAX`."""
+        self.refine = 0
+        self._probe()
         e = min(self.error, 0.5)
         if self.error > REFINE_TOL:
             self.refine = min(REFINE_MAX, math.ceil(math.log(REFINE_TARGET) / math.log(e)) - 1)
@@ -157,6 +169,7 @@ class CoarseSolve:
             why = f" (by the problem: {st.m} rows; {why})"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
+                  else f"; forward error {self.error:.2g} on a probe, above {CYCLE_TOL}: the balanced form" if self.loose
                   else "")
         return f"coarse solve: {inner.text(self.pc, self.cycles)}{why}{order}{refine}; options -{self.prefix}*"
 
