@@ -70,6 +70,7 @@ EXPECTED = {
     "second_set_from_options": CONVERGED,
     "jumps3d": CONVERGED,
     "loose_coarse_cycles": CONVERGED,
+    "penalty_rows_last": CONVERGED,
     "missing_checkpoint": r"error: checkpoint /nonexistent/model.pt does not exist or cannot be read",
     "corrupt_checkpoint": r"error: petsc_htp checkpoint .*corrupt.pt is corrupt or unreadable: torch.load failed.*",
     "unknown_form": r"error: -htp_form 'banana' unknown; use one of auto, deflated, balanced",
@@ -81,7 +82,8 @@ EXPECTED = {
 SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2"), "rescaled_values": ("1", "3")}
 # the most iterations a converged case may take (none: no bound)
 MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40, "penalty_rows": 40, "jumps3d": 40,
-           "null_vector_attached": 40, "loose_coarse_cycles": 120}
+           "null_vector_attached": 40, "loose_coarse_cycles": 120,
+           "penalty_rows_last": 40}
 
 pytestmark = [pytest.mark.mpi, pytest.mark.slow]
 assert MPIEXEC, "mpiexec not found (the Makefile installs MPICH)"

@@ -8,7 +8,10 @@ it is not exact enough for the deflated one (:attr:`CoarseSolve.exact`), whose n
 coarse coefficients; with it, 120 outer CG iterations against 141 under a plain V-cycle on the foreign study's
 dmda3d case at 64^3).
 Any PETSc PC can replace it through its options; the PC that was made decides (a direct one is exact and
-probed, below; one V-cycle is taken as :func:`.sizing.coarse_exact` says; any other takes the balanced form).
+probed, below; V-cycles are taken as :func:`.sizing.coarse_exact` says, and those taken as exact are probed too:
+above :data:`CYCLE_TOL` they take the balanced form; any other takes the balanced form). GAMG keeps its
+interpolation for new values of E, as PETSc's does, but where the couplings moved away from kept leaves it is made
+anew (:attr:`CoarseSolve.renew`).
 
 An exact (LU) coarse solve is as accurate as E is conditioned: at a density contrast of 1e6, E's eigenvalues span
 1e11 and the LU's forward error on a probe is 4e-5 (5e-10 at 1e3), which the deflated form, whose start and
@@ -28,9 +31,10 @@ from . import inner, nearnull, sizing
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
 REFINE_MAX = 3          # the most refinement steps
-CYCLE_TOL = 0.25        # forward error on a probe above which V-cycles taken as exact go to the balanced form (the
+CYCLE_TOL = 0.4         # forward error on a probe above which V-cycles taken as exact go to the balanced form (the
 # defaults' two V-cycles 0.05-0.08 on the foreign study's 3-D cases at 64k and 262k rows and the 2-D DMDA at 1M on
-# two ranks; -htp_cs_pc_gamg_threshold 0.3, one level: 0.6, and the deflated form ran to DIVERGED_ITS on 2-4 ranks)
+# two ranks, 0.19 on its 3-D DMDA at 22k rows on two; -htp_cs_pc_gamg_threshold 0.3, one level: 0.6-0.8, and the
+# deflated form ran to DIVERGED_ITS on 2-4 ranks)
 DIRECT = ("lu", "cholesky", "svd")         # PC types that solve E (also inside PCREDUNDANT: :meth:`CoarseSolve._direct`)
 
 
@@ -47,7 +51,9 @@ class CoarseSolve:
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
         self.refine, self.error, self.direct, self.general, self.cycles, self.loose = 0, 0.0, False, False, 1, False
         self.renew = False      # set where the couplings moved away from kept leaves: a V-cycle made for the old
-        # values' E then served poorly (DMDA 3-D, 64 000 rows, new inclusions: 116 CG iterations against 56 anew)
+        # values' E then served poorly (DMDA 3-D, 64 000 rows, new inclusions: 116 CG iterations against 56 anew); the
+        # PC is made anew (PCReset kept the level count GAMG had built last as its most: fewer levels each time)
+        self.defaults = {}
 
     def setup(self, ops):
         """Set up the solver on the new values of the coarse operator of ``ops`` (made on first use; an LU, also
@@ -59,6 +65,7 @@ class CoarseSolve:
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
                 defaults = {k: "inblocks" if k.endswith("shift_type") else v for k, v in defaults.items()}
             self.pc, self.rest = inner.configured_pc(E.getComm(), E, self.prefix, defaults)
+            self.defaults = defaults
             self.cycles = PETSc.Options(self.prefix).getInt("pc_mg_multiplicative_cycles",
                                                             int(defaults.get("pc_mg_multiplicative_cycles", 1)))
             if st.col_block > 1 and self.pc.getType() in ("lu", "redundant"):   # PCREDUNDANT's inner: LU
@@ -71,8 +78,8 @@ class CoarseSolve:
         self.E = ops.E
         if inner.multigrid(self.pc):
             if self.st.coll.any(self.renew):          # GAMG keeps its interpolation for new values (PETSc's
-                self.pc.reset()                       # default); where the couplings moved under kept leaves on
-                self.pc.setOperators(ops.E, ops.E)    # any rank it coarsens E anew (:attr:`renew`)
+                self.pc.destroy()                     # default); where the couplings moved under kept leaves on
+                self.pc, self.rest = inner.configured_pc(ops.E.getComm(), ops.E, self.prefix, self.defaults)
             self._near_null(ops)
         self.renew = False
         inner.set_up(self.pc, self.prefix, self.rest)
@@ -168,9 +175,9 @@ class CoarseSolve:
                    "direct at any size " + ("on a chain, whose LU does not fill" if st.linear else "with a dense row"))
             why = f" (by the problem: {st.m} rows; {why})"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
+        loose = f"; forward error {self.error:.2g} on a probe, above {CYCLE_TOL}: too loose for the deflated form"
         refine = (f"; {self.refine} refinement step(s) (forward error {self.error:.1e} on a probe)" if self.refine
-                  else f"; forward error {self.error:.2g} on a probe, above {CYCLE_TOL}: the balanced form" if self.loose
-                  else "")
+                  else loose if self.loose else "")
         return f"coarse solve: {inner.text(self.pc, self.cycles)}{why}{order}{refine}; options -{self.prefix}*"
 
     def nnz(self) -> int:

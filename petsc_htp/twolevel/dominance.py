@@ -21,13 +21,14 @@ from .csr import row_entries, row_sums
 MARGIN = 0.0025     # dominance margin c from which ICC(0) of the whole matrix beats the two-level method
 SAMPLE = 4096       # rows whose margin is looked at first
 PINNED = 1e8        # a_ii / sum_j |a_ij| from which a row is pinned (a penalty's Dirichlet row: tgv = 1e30)
-SOLVED = 1e2        # ... from which its own diagonal decides it: out of the scaling's quotients and, under piece
-# constants, out of W (a penalty of 1e10 beside a coefficient of 1e4 is no pinned row: P1 triangles of 40 000 rows
-# with a checkerboard of 1 and 1e4 took 255 CG iterations, now 36, those of the same rows zeroed by MatZeroRowsColumns;
-# under |diag|^-1/2 such rows of D A D hold their share of the near null vector D^-1 1: 98 iterations without them)
+SOLVED = 1e2        # ... from which its own diagonal decides it: out of the scaling's quotients and, unless the
+# pieces take row-scaled vectors, out of W (a penalty of 1e10 beside a coefficient of 1e4 is no pinned row: P1
+# triangles of 40 000 rows with a checkerboard of 1 and 1e4 took 255 CG iterations, now 36, those of the same rows
+# zeroed by MatZeroRowsColumns; under |diag|^-1/2 such rows of D A D hold their share of the near null vector D^-1 1:
+# 98 iterations without them)
 SCREEN = 1e3        # ... looked for only where a_ii exceeds this times the median of a sample of rows' ...
-TYPICAL = 16384     # ... of this many rows at random (every 64th row's, on a square of side 128 whose rows were every
-# other one a wall's penalty row, had been a penalty's: none looked at)
+TYPICAL = 16384     # ... of this many rows at random, or of all (every 64th row's, on a square of side 128 whose rows
+# were every other one a wall's penalty row, had been a penalty's: none looked at)
 
 
 def margin(rows, start) -> float:
@@ -60,16 +61,21 @@ def _smallest(rows, start, picked) -> float:
     return float((diag[coupled] / off[coupled]).min() - 1.0)
 
 
-def pinned(rows, start, ratio=PINNED) -> np.ndarray:
+def pinned(rows, start, ratio=PINNED, coll=None) -> np.ndarray:
     """This rank's rows (local indices) pinned by their diagonal, a_ii >= ``ratio`` sum_j |a_ij| > 0 (``rows``:
     CSR, global columns, local rows from ``start``): a penalty method's Dirichlet rows. In W they would put a_ii
     into E = W^T A W beside the piece's other entries, which rounding then loses (tgv = 1e30 on P1 triangles: a
     "converged" CG at a true residual of 0.56, the balanced form indefinite); the leaf solve takes them exactly.
-    Only rows whose diagonal passes :data:`SCREEN` times a typical one are looked at (6 ms at 1M rows)."""
+    Only rows whose diagonal passes :data:`SCREEN` times a typical one are looked at (6 ms at 1M rows): the least
+    over the ranks (``coll``, collective; a rank whose rows are mostly a penalty's, boundary rows numbered last, took
+    its own median for typical and none of its rows: 377 CG iterations on 9 ranks against 25 on one)."""
     diag = np.abs(rows.diagonal(k=start))
+    sample = diag if diag.size <= TYPICAL else diag[np.random.default_rng(0).integers(0, diag.size, TYPICAL)]
+    typical = np.median(sample) if sample.size else np.inf
+    if coll is not None:
+        typical = float(coll.min_array(np.array([typical]))[0])
     if not diag.size:
         return np.zeros(0, dtype=np.int64)
-    typical = np.median(diag[np.random.default_rng(0).integers(0, diag.size, min(diag.size, TYPICAL))])
     high = np.flatnonzero(diag > SCREEN * typical)
     where, owner = row_entries(rows.indptr, high)
     offdiag = rows.indices[where] != high[owner] + start            # summed apart: 1e30 + 4 - 1e30 is 0
@@ -77,11 +83,11 @@ def pinned(rows, start, ratio=PINNED) -> np.ndarray:
     return high[(off > 0) & (diag[high] >= ratio * off)]
 
 
-def left_out(rows, start, solved, weighted) -> tuple:
-    """(this rank's rows W leaves out, the bound they pass): under piece constants those their own diagonal decides
-    (``solved``, :data:`SOLVED`), under row-scaled piece vectors (``weighted``), which weigh them by |a_ii|^-1/2
-    already, only the pinned ones (:data:`PINNED`)."""
-    return (pinned(rows, start), PINNED) if weighted else (solved, SOLVED)
+def left_out(rows, start, solved, weighted, coll=None) -> tuple:
+    """(this rank's rows W leaves out, the bound they pass): those their own diagonal decides (``solved``,
+    :data:`SOLVED`), but under row-scaled piece vectors (``weighted``), which weigh them by |a_ii|^-1/2 already, only
+    the pinned ones (:data:`PINNED`; collective there)."""
+    return (pinned(rows, start, PINNED, coll), PINNED) if weighted else (solved, SOLVED)
 
 
 def holds(rows, start) -> bool:

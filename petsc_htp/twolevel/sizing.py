@@ -291,7 +291,8 @@ def metis_ordered(solver: str, dim: int, rows: int, ranks: int = 1, kind: str = 
 
 def coarse_options(dim: int, parallel: bool, solver: str, kind: str = "", ordered=False, near: int = 0) -> dict:
     """The coarse solver's PETSc options (under ``<prefix>htp_cs_``): ``solver`` 'lu' (a sparse factor) or
-    'gamg' (V-cycles set up afresh each numeric step: a reused interpolation costs more iterations than it saves)
+    'gamg' (V-cycles whose interpolation new values of E keep, as PETSc's GAMG does, unless the couplings moved
+    under kept leaves: :attr:`.coarsesolve.CoarseSolve.renew`)
     in ``dim`` dimensions: two V-cycles an application in the deflated form in 2-D (:data:`COARSE_AMG_2D`) and on
     paired 3-D aggregation leaves (:data:`COARSE_AMG_3D_PAIRED`); one in the balanced form on the 3-D coarse operator
     of aggregation leaves with near null vectors (:data:`COARSE_AMG_3D`) and in the deflated form on Morton leaves'

@@ -169,7 +169,7 @@ class CoarseSpace:
         """What ``-ksp_view`` adds on the pieces' vectors (:func:`.scaling.note`) and on pinned rows."""
         return scaling.note(self.weights is not None, quotients) + (
             f"; {self.pinned} pinned row(s) left out of W (a_ii >= {self.bound:g} x the row's off-diagonal sum: "
-            f"a penalty's Dirichlet rows)" if self.pinned else "")
+            f"a penalty's Dirichlet rows, a strong reaction; the leaf solves take them)" if self.pinned else "")
 
     def _zeroed(self, dropped) -> np.ndarray:
         """W's entries in the columns ``dropped`` (cached: the null space rarely changes)."""
