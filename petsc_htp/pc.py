@@ -40,7 +40,7 @@ from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .ranksplit import crossing
 from .validation import check_attached, check_matrix, check_size, check_symmetry
-from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows
+from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows, post_solve
 from .threads import set_threads
 from .variants import variant_class
 
@@ -54,6 +54,20 @@ def give_back(ksp, changed) -> None:
         ksp.setInitialGuessNonzero(changed["guess"])
     if "divtol" in changed:
         ksp.setTolerances(divtol=changed["divtol"])
+
+
+def unwinding(presolve):
+    """``presolve`` that, where it raises, first runs PETSc's PCPostSolve (:func:`.petscmat.post_solve`), whose
+    Python side then has no solve to tell (:attr:`HTPPC._started` None)."""
+    def wrapped(self, pc, ksp, b, x):
+        try:
+            return presolve(self, pc, ksp, b, x)
+        except Exception:
+            self._started = None
+            post_solve(pc, ksp)
+            raise
+    wrapped.__doc__ = presolve.__doc__
+    return wrapped
 
 
 class HTPPC(Inspection):
@@ -216,6 +230,7 @@ class HTPPC(Inspection):
         """M is symmetric: same as :meth:`apply`."""
         self.apply(pc, x, y)
 
+    @unwinding
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
         raised before its postSolve kept are given back first; a context set up nowhere yet sets itself up (a second
@@ -232,7 +247,7 @@ class HTPPC(Inspection):
     def postSolve(self, pc, ksp, b, x):
         """After each KSPSolve: tell the variant its iterations; give the KSP back the settings its start changed
         (initial-guess flag, divergence tolerance)."""
-        if self.setup is not None and not self.fallback_active:
+        if self.setup is not None and not self.fallback_active and self._started is not None:
             self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
         self._changed = give_back(ksp, self._changed)
 

@@ -131,6 +131,13 @@ def diagonal_block(mat, rows):
         yield block
 
 
+def post_solve(pc, ksp) -> None:
+    """PETSc's PCPostSolve, for a preSolve that raises: PETSc counts a PC's presolves and lowers the count only there,
+    which a KSPSolve that stops with an error skips, so two such errors left the KSP refusing every later solve
+    ("Cannot embed PCPreSolve() more than twice")."""
+    _c_api()[0].PCPostSolve(ctypes.c_void_p(pc.handle), ctypes.c_void_p(ksp.handle))
+
+
 @functools.lru_cache(maxsize=1)
 def _c_api():
     """PETSc's C library (reached through petsc4py's extension module) and the ctypes type of PetscInt."""

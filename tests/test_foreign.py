@@ -800,6 +800,28 @@ def test_kept_leaves_whose_couplings_moved_get_their_coarse_v_cycles_anew():
     assert reason > 0 and relres <= 1e-8 and moved_its <= 40, (its, moved_its)
 
 
+def test_a_coarse_graph_that_grows_as_no_mesh_takes_gamg_in_place_of_the_lu():
+    """A 2-D grid (40 000 rows, + 0.01 I) with 1 % of its nodes joined at random: the matrix's sampled balls grow as a
+    mesh's, so the LU was chosen for its coarse operator, whose whole graph grows as an expander's and whose LU
+    filled 118-fold at 100 000 rows (7.9 s). E's growth from 32 seeds sends it to GAMG, and -ksp_view says why; the
+    foreign study's 2-D coarse operators keep the LU (1.68-1.92)."""
+    side, rng = 200, np.random.default_rng(11)
+    grid = np.arange(side * side).reshape(side, side)
+    a, c = rng.integers(0, side * side, (2, side * side // 100))
+    rows = np.concatenate([grid[:-1].ravel(), grid[:, :-1].ravel(), a])
+    cols = np.concatenate([grid[1:].ravel(), grid[:, 1:].ravel(), c])
+    keep = rows != cols
+    W = sp.csr_matrix((np.ones(keep.sum()), (rows[keep], cols[keep])), shape=(side * side,) * 2)
+    W = W + W.T
+    A = (sp.diags(np.asarray(W.sum(axis=1)).ravel() + 1e-2) - W).tocsr()
+    reason, its, relres, ksp, _ = solve(A, np.random.default_rng(1).standard_normal(side * side))
+    text = lines(ksp)
+    assert reason > 0 and relres <= 1e-8 and its <= 40, (reason, its, text)
+    assert "GAMG" in text and "no 2-D mesh's: an LU would fill" in text, text
+    A0, b = foreign.dmda(2, 200, 1e3, 0)
+    assert "coarse solve: LU" in lines(solve(A0, b)[3])
+
+
 def test_leaves_are_kept_while_a_new_analysis_would_not_pay():
     """keeps_leaves: extra iterations keep them while they cost no more than the analysis took; after one solve,
     what old leaves cost the last time values moved decides (never measured: they are tried)."""

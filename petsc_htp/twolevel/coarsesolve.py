@@ -27,6 +27,8 @@ import math
 from petsc4py import PETSc
 
 from . import inner, nearnull, sizing
+from ..petscmat import local_rows
+from .spread import global_growth
 
 REFINE_TOL = 1e-8       # forward error of the coarse LU on a probe above which refinement steps are added
 REFINE_TARGET = 1e-12   # ... as many as bring it below this
@@ -35,6 +37,12 @@ CYCLE_TOL = 0.4         # forward error on a probe above which V-cycles taken as
 # defaults' two V-cycles 0.05-0.08 on the foreign study's 3-D cases at 64k and 262k rows and the 2-D DMDA at 1M on
 # two ranks, 0.19 on its 3-D DMDA at 22k rows on two; -htp_cs_pc_gamg_threshold 0.3, one level: 0.6-0.8, and the
 # deflated form ran to DIVERGED_ITS on 2-4 ranks)
+MESH_GROWTH = {2: 2.1, 3: 3.0}     # E's ball growth above which the LU chosen for a mesh's coarse operator gives way to
+# GAMG: a 2-D grid of 100 000 rows with 1 % of its nodes joined at random (shortcuts) made E of 8 978 rows grow as
+# 2.47 and its LU fill 118 x (7.9 s against 0.3 s); 2-D coarse operators of the foreign study 1.68-1.81 (the P1
+# triangles numbered at random 1.92 on 2 ranks), 3-D 2.5-2.6. Milder shortcuts stay below: 0.3 % of the nodes, 1.89,
+# an LU of fill 60 (1.5 s)
+GROWTH_SEEDS = 32        # ... from this many seeds' balls (8 put the foreign study's P1 triangles at 1.88 on 2 ranks)
 DIRECT = ("lu", "cholesky", "svd")         # PC types that solve E (also inside PCREDUNDANT: :meth:`CoarseSolve._direct`)
 
 
@@ -50,6 +58,7 @@ class CoarseSolve:
         self.exact = sizing.coarse_exact(st.dim, self.solver, st.leaves.kind, near=st.fixed)   # else balanced (Forms)
         self.g = self.c = self.c2 = self.E = self._res = self._dc = None
         self.refine, self.error, self.direct, self.general, self.cycles, self.loose = 0, 0.0, False, False, 1, False
+        self.growth = math.nan                  # E's ball growth, where the LU was chosen (:meth:`_no_mesh`)
         self.renew = False      # set where the couplings moved away from kept leaves: a V-cycle made for the old
         # values' E then served poorly (DMDA 3-D, 64 000 rows, new inclusions: 116 CG iterations against 56 anew); the
         # PC is made anew (PCReset kept the level count GAMG had built last as its most: fewer levels each time)
@@ -60,6 +69,8 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
+            if self.chosen and self.solver == "lu" and not (st.linear or st.dense or st.fixed) and self._no_mesh(E):
+                self.solver = "gamg"
             defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.ordered,
                                              st.fixed)
             if st.col_block > 1:                      # block factors shift only within the diagonal blocks
@@ -93,6 +104,13 @@ class CoarseSolve:
         """Whether the deflated form may take this solve: exact, and exact without refinement, and V-cycles that
         met :data:`CYCLE_TOL` on the probe."""
         return self.exact and not self.refine and not self.loose
+
+    def _no_mesh(self, E) -> bool:
+        """Whether E's whole graph grows faster than a mesh's of the problem's dimension (:data:`MESH_GROWTH`; kept
+        as :attr:`growth`; collective), which the matrix's sampled balls missed: its LU would fill."""
+        with local_rows(E, copy=True) as rows:
+            self.growth = global_growth(E, rows, self.st.coll, samples=GROWTH_SEEDS)
+        return self.growth > MESH_GROWTH.get(self.st.dim, math.inf)
 
     def _direct(self) -> bool:
         """Whether the PC made solves E: a factor, or PCREDUNDANT around one (its inner type from the options, LU
@@ -173,6 +191,8 @@ class CoarseSolve:
             several = " on several ranks" if st.dim == 2 and st.coll.size > 1 else ""
             why = (f"direct up to {limit}{several} in {st.dim}-D" if not (st.linear or st.dense and st.m > limit) else
                    "direct at any size " + ("on a chain, whose LU does not fill" if st.linear else "with a dense row"))
+            if self.growth > MESH_GROWTH.get(st.dim, math.inf):
+                why = f"its graph grows as {self.growth:.2f}, no {st.dim}-D mesh's: an LU would fill"
             why = f" (by the problem: {st.m} rows; {why})"
         order = "; coarse columns in METIS's nested-dissection order of the leaf graph" if self.st.ordered else ""
         loose = f"; forward error {self.error:.2g} on a probe, above {CYCLE_TOL}: too loose for the deflated form"

@@ -23,29 +23,29 @@ CROSSING = SPLIT_PAIRED  # share of off-diagonal couplings between ranks from wh
 SAMPLES = 8         # seeds whose balls are grown
 
 
-def _seeds(rows, start, N, coll, hub, rng) -> np.ndarray:
-    """Up to :data:`SAMPLES` global rows with a nonzero off-diagonal entry, none of them a ``hub`` (this rank's rows'
+def _seeds(rows, start, N, coll, hub, rng, samples=SAMPLES) -> np.ndarray:
+    """Up to ``samples`` global rows with a nonzero off-diagonal entry, none of them a ``hub`` (this rank's rows'
     flags), the same on every rank."""
-    candidates = rng.choice(N, min(N, 8 * SAMPLES), replace=False)
+    candidates = rng.choice(N, min(N, 8 * samples), replace=False)
     coupled = np.zeros(candidates.size)
     mine = np.flatnonzero((candidates >= start) & (candidates < start + rows.shape[0]))
     if mine.size:
         where, owner = row_entries(rows.indptr, candidates[mine] - start)
         hit = (rows.data[where] != 0) & (rows.indices[where] != candidates[mine][owner])
         coupled[mine] = (np.bincount(owner[hit], minlength=mine.size) > 0) & ~hub[candidates[mine] - start]
-    return candidates[coll.max_array(coupled) > 0][:SAMPLES]
+    return candidates[coll.max_array(coupled) > 0][:samples]
 
 
-def global_growth(mat, rows, coll, seed=0) -> float:
-    """The ball-growth exponent of the whole graph of ``mat`` (median of log2 |B(2R)| / |B(R)| over the seeds, R =
+def global_growth(mat, rows, coll, seed=0, samples=SAMPLES) -> float:
+    """The ball-growth exponent of the whole graph of ``mat`` (median of log2 |B(2R)| / |B(R)| over ``samples`` seeds, R =
     :data:`.graphshape.RADIUS`): a breadth-first search from the seeds whose balls every rank holds, each rank
     expanding the rows it owns and one allgather of the rows reached per step (the work is the balls' size, as in
     :func:`.graphshape.graph_shape`: 1-6 ms at 64k rows); hub rows (:func:`.graphshape.hub_rows`) are reached but
     neither grown through nor seeds. nan where too few coupled rows were found."""
     N, (start, end) = mat.getSize()[0], mat.getOwnershipRange()
     hub = hub_rows(rows.indptr)
-    seeds = _seeds(rows, start, N, coll, hub, np.random.default_rng(seed))
-    if seeds.size < SAMPLES:
+    seeds = _seeds(rows, start, N, coll, hub, np.random.default_rng(seed), samples)
+    if seeds.size < samples:
         return float("nan")
     ball = frontier = np.sort(np.arange(seeds.size, dtype=np.int64) * N + seeds)
     sizes = []
