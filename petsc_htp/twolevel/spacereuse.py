@@ -38,7 +38,7 @@ def keeps(every: int, age: int, its: list, renewed: bool = False) -> bool:
 
 def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float, penalty=None) -> bool:
     """Whether leaves whose couplings moved are kept: a new analysis would not pay back within one frame unless the
-    extra iterations of the last solve with them over the first (``its``: the first and the last since the
+    extra iterations of the worst solve with them over the first (``its``: the first and the most since the
     analysis), at ``ms_per_it``, cost more than the analysis took (``analysis_ms``). After one solve only, what old
     leaves cost the last time values moved (``penalty``, ms; None: never measured, so they are tried) decides: the
     3-D DMDA frames otherwise took old leaves every other frame (58 against 26 iterations)."""
@@ -48,8 +48,8 @@ def keeps_leaves(analysis_ms: float, its: list, ms_per_it: float, penalty=None) 
 
 
 def stale_cost(its: list, ms_per_it: float):
-    """The ms the last solve with a pattern's leaves took beyond the first with them (``its``: the first and the
-    last since the analysis), or None after one solve."""
+    """The ms the worst solve with a pattern's leaves took beyond the first with them (``its``: the first and the
+    most since the analysis), or None after one solve."""
     return (its[-1] - its[0]) * ms_per_it if len(its) > 1 else None
 
 
