@@ -137,8 +137,8 @@ class TwoLevel:
     @staticmethod
     def solved(setup, its, seconds):
         """A KSPSolve with ``setup`` took ``its`` iterations in ``seconds``: kept as the first and the last since its
-        coarse space and its leaves were made (:mod:`.twolevel.spacereuse`), and the deflated form's start ends; a
-        DirectPC keeps none."""
+        coarse space was made and the first and the most since its leaves were (:mod:`.twolevel.spacereuse`), and the
+        deflated form's start ends; a DirectPC keeps none."""
         if hasattr(setup, "solved"):
             setup.solved(its, seconds)
 

@@ -959,7 +959,7 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
     assert small.returncode == 0 and "gathered and factored on each of the 2 ranks" in small.stdout, small.stdout
     assert "join rows of two ranks" not in small.stdout, small.stdout
     asked = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS, "-htp_leaf_redundant_pc_type", "cholesky")
-    want = "PETSc's cholesky of the whole matrix, as -htp_leaf_redundant_pc_type asks"
+    want = "whole matrix: PETSc's cholesky, as -htp_leaf_redundant_pc_type asks"
     assert asked.returncode == 0 and want in asked.stdout, asked.stdout
     proc = _mpirun(2, script, "-case", "neumann", "-n", "4096", *HTPPC_FLAGS)
     assert proc.returncode == 0 and "constant null space attached" in proc.stdout, proc.stdout + proc.stderr

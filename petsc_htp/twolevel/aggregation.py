@@ -30,7 +30,6 @@ import scipy.sparse as sp
 
 from .amgkernels import kernels
 from .csr import indptr_of, row_entries
-from .dominance import SOLVED
 
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
 PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-D and 3-D Poisson-type graphs
@@ -62,10 +61,8 @@ def strength(A, theta=THETA) -> sp.csr_matrix:
 
 def sampled_shares(A, rows=SAMPLE_ROWS) -> tuple:
     """The symmetric shares |a_ij| / sqrt(|a_ii a_jj|) of the nonzero off-diagonal entries of about ``rows`` evenly
-    spaced rows of a square CSR ``A`` (inf over a zero diagonal), each such row's largest (but for rows their own
-    diagonal decides, :data:`.dominance.SOLVED`: a rank of a penalty's Dirichlet rows, numbered last, took the strength
-    threshold down to 5e-7 and its leaves across a coefficient jump of 1e4, 185 CG iterations against 25 on one rank),
-    and the fraction of those entries that are positive (0.0 where there are none)."""
+    spaced rows of a square CSR ``A`` (inf over a zero diagonal), each such row's largest, and the fraction of
+    those entries that are positive (0.0 where there are none)."""
     picked = np.arange(0, A.shape[0], max(1, A.shape[0] // rows))
     where, owner = row_entries(A.indptr, picked)
     row, col, signed = picked[owner], A.indices[where], A.data[where]
@@ -77,8 +74,7 @@ def sampled_shares(A, rows=SAMPLE_ROWS) -> tuple:
     share = np.divide(val[off], scale, out=np.full(scale.size, np.inf), where=scale > 0)
     largest = np.zeros(picked.size)
     np.maximum.at(largest, owner[off], share)
-    voting = (largest > 0) & (diag[picked] < SOLVED * np.bincount(owner[off], val[off], minlength=picked.size))
-    return share, largest[voting], positive
+    return share, largest[largest > 0], positive
 
 
 def threshold(largest, theta=THETA) -> float:

@@ -89,7 +89,8 @@ class CoarseSolve:
         self.E = ops.E
         if inner.multigrid(self.pc):
             if self.st.coll.any(self.renew):          # GAMG keeps its interpolation for new values (PETSc's
-                self.pc.destroy()                     # default); where the couplings moved under kept leaves on
+                old, self.pc = self.pc, None          # default); where the couplings moved under kept leaves on
+                old.destroy()                         # any rank it is made anew (:attr:`renew`)
                 self.pc, self.rest = inner.configured_pc(ops.E.getComm(), ops.E, self.prefix, self.defaults)
             self._near_null(ops)
         self.renew = False

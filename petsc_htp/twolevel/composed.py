@@ -157,9 +157,8 @@ class TwoLevelPC:
 
     def solved(self, its, seconds):
         """A KSPSolve took ``its`` iterations in ``seconds``: kept as the first and the last since the coarse space
-        was made (:func:`.spacereuse.keeps`), and the first and the most since the leaves were
-        (:func:`.spacereuse.keeps_leaves`: two value sets in turn, the second of which old leaves took to 707
-        iterations, judged them by the other's 30 each time); the deflated form's start ends with the solve."""
+        was made (:func:`.spacereuse.keeps`), and the first and the most since the leaves were (the last let two value
+        sets in turn keep leaves that cost one of them 500 iterations: :func:`.spacereuse.keeps_leaves`)."""
         self.its, self.leaf_its = self.its[:1] + [its], self.leaf_its[:1] + [max([its] + self.leaf_its[1:])]
         self.ms_per_it = 1e3 * seconds / max(its, 1)
         self.forms.started = False

@@ -27,7 +27,7 @@ def describe(d, overlap) -> list:
         factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if d.kind == "band" else
                   f"{CHOSEN_TYPE[d.kind]}, {d.ordering} ordering")
         if asked != CHOSEN_TYPE[d.kind]:              # (PCREDUNDANT's inner PC has no getter in petsc4py)
-            what = f"PETSc's {asked} of the whole matrix, as -{d.prefix}redundant_pc_type asks (chosen: {what})"
+            what = f"PETSc's {asked}, as -{d.prefix}redundant_pc_type asks (chosen: {what})"
             factor = asked
         where = (f", gathered and factored on each of the {d.ranks} ranks (PCREDUNDANT: "
                  f"{factor}; options -{d.prefix}redundant_*)")

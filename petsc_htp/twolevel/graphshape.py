@@ -48,6 +48,8 @@ class GraphShape:
     positive : float
         Share of sampled nonzero off-diagonal couplings that are positive (rotated anisotropy's 9-point stencils: a
         quarter; P1 triangles of a Delaunay mesh and 5-point stencils: none); nan where not measured.
+    largest : numpy.ndarray or None
+        The sampled rows' largest shares (:func:`~.aggregation.sampled_shares`), from which ``theta`` came.
     """
 
     dim: int
@@ -55,6 +57,7 @@ class GraphShape:
     weak: float
     theta: float = float("nan")
     positive: float = float("nan")
+    largest: object = None
 
     def describe(self) -> str:
         """One line for ``-ksp_view``."""
@@ -162,17 +165,18 @@ def graph_shape(A, seed=0, want_weak=True, samples=SAMPLES) -> GraphShape:
     False leaves the strength threshold and the share of weak couplings out (nan), when only the dimension is
     wanted."""
     theta = weak = positive = float("nan")
+    largest = None
     if want_weak:
         share, largest, positive = sampled_shares(A)
         theta = threshold(largest)
         weak = float(np.mean(share < theta)) if share.size else 0.0
     seeds = _coupled_seeds(A, samples, np.random.default_rng(seed))
     if seeds.size < samples:
-        return GraphShape(2, float("nan"), weak, theta, positive)
+        return GraphShape(2, float("nan"), weak, theta, positive, largest)
     if A.shape[0] * seeds.size <= PATHS:
         balls = _ball_sizes_by_paths
     else:
         balls = _ball_sizes_by_products if _by_products(A) else _ball_sizes
     small, large = balls(_without_hubs(A), seeds.astype(np.int64), RADIUS)
     growth = float(np.median(np.log2(large / small)))
-    return GraphShape(3 if growth > CUT else 2, growth, weak, theta, positive)
+    return GraphShape(3 if growth > CUT else 2, growth, weak, theta, positive, largest)

@@ -51,8 +51,7 @@ class Structure:
     """
 
     def __init__(self, mat, rows, coords, cfg, net_rank=None):
-        self.coll = Collective(mat.getComm())
-        self.N = mat.getSize()[0]
+        self.coll, self.N = Collective(mat.getComm()), mat.getSize()[0]
         with diagonal_block(mat, rows) as block:
             self._leaves(mat, rows, block, coords, cfg)
         self.lay = layout(rows, mat.getOwnershipRange()[0], self.leaves)
@@ -82,9 +81,10 @@ class Structure:
         self.positive = float(coll.max_array(np.array([positive]))[0])
         self.split = (crossing(mat, rows, coll, rows.data != 0) or (1, 0.0))[1]    # couplings that join two ranks
         self.cfg = cfg = self.resolved(cfg, coords is None)
-        theta = (self.shape.theta if self.shape is not None else THETA if cfg.ordering != "aggregation"
-                 else threshold(sampled_shares(block)[1]))              # coordinates: aggregation leaves if asked
-        self.theta = float(coll.min_array(np.array([theta]))[0])      # strong couplings: the leaves' and moved()'s
+        largest = (self.shape.largest if self.shape is not None else None if cfg.ordering != "aggregation"
+                   else sampled_shares(block)[1])                     # coordinates: aggregation leaves if asked
+        # from every rank's sampled rows together (the least of the ranks' own: a rank of penalty rows set 5e-7)
+        self.theta = THETA if largest is None else threshold(coll.gather_rows(largest[:, None]).ravel())
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf, self.bs, cfg.aggregation,
                                     self.theta, mat.getOwnershipRange()[0] % self.bs)
         learned = cfg.coarse == "learned"             # only the network reads the block again (the analysis)
@@ -116,8 +116,8 @@ class Structure:
                                    aggregation=second)
 
     def _weak_inside(self, data, theta=None) -> int:
-        """Weak couplings (at ``theta``, else :attr:`theta`: :func:`.aggregation.threshold`, the lowest over the
-        ranks) among the sampled ones inside the leaves (:meth:`_weak_maps`), for values ``data`` of the analysed
+        """Weak couplings (at ``theta``, else :attr:`theta`: :func:`.aggregation.threshold` of every rank's sampled
+        rows together) among the sampled ones inside the leaves (:meth:`_weak_maps`), for values ``data`` of the analysed
         pattern."""
         src, row_diag, col_diag = self._weak_maps()
         vals = data[src]
