@@ -484,6 +484,16 @@ def case_penalty_rows_last():
     return outcome(dist(A, rows_on=split), b, {"htp_direct_max": 0})[0]
 
 
+def case_gathered_lu_asked():
+    """PyAMG's 966-row discontinuous Galerkin matrix, whose rich rows take ICC(0) of the whole matrix (gathered on
+    every rank of two), with ``-htp_leaf_redundant_pc_type lu``: the positive_definite shift chosen for ICC(0) went to
+    the user's LU, and PETSc crashed with SEGV on two ranks. The inner type the user chose takes PETSc's defaults."""
+    from petsc_htp.bench.foreigncases import pyamg_cases
+
+    A, b = pyamg_cases()["pyamg_local_disc_galerkin_diffusion"][:2]
+    return outcome(dist(A), b, {"htp_direct_max": -1, "htp_leaf_redundant_pc_type": "lu"})[0]
+
+
 def case_missing_checkpoint():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b,
                    {"htp_variant": "paper", "htp_checkpoint": "/nonexistent/model.pt"})[0]

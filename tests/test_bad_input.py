@@ -57,6 +57,7 @@ EXPECTED = {
     "inconsistent_twolevel": INCONSISTENT,
     "inconsistent_then_attached": CONVERGED,
     "inconsistent_three_times": CONVERGED,
+    "gathered_lu_asked": CONVERGED,
     "coordinates_on_some_ranks": {1: CONVERGED,
                                   2: r"error: coordinates are attached on 1 of the 2 ranks only: call petsc_htp.attach "
                                      r"on every rank of a parallel matrix"},

@@ -104,6 +104,18 @@ def through_api(pc, defaults) -> dict:
             inner.setTolerances(rtol=float(rest.pop("ksp_ksp_rtol")))
         sub = {k[len("ksp_"):]: rest.pop(k) for k in list(rest) if k.startswith("ksp_pc_")}
         rest.update({"ksp_" + k: v for k, v in through_api(inner.getPC(), sub).items()})
+    return owned(pc, rest)
+
+
+def owned(pc, rest) -> dict:
+    """``rest`` without the factor defaults of an inner PC (PCREDUNDANT's, PCBJACOBI's or PCASM's blocks') whose type
+    the user chose under ``pc``'s prefix (``redundant_pc_type``, ``sub_pc_type``): that type takes PETSc's own, as a
+    user's ``pc_type`` does (the positive_definite shift chosen for ICC(0) made PETSc's LU crash with SEGV)."""
+    db = PETSc.Options(pc.getOptionsPrefix() or "")
+    for inner in ("redundant_", "sub_"):
+        key = inner + "pc_type"
+        if key in rest and db.hasName(key) and db.getString(key) != rest[key]:
+            rest = {k: v for k, v in rest.items() if not k.startswith(inner + "pc_factor_")}
     return rest
 
 
