@@ -33,6 +33,9 @@ FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "n
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
                    "pc_factor_shift_type": "positive_definite"},
            "band": {"pc_type": "python", "pc_python_type": "petsc_htp.twolevel.band.BandPC"}}   # LAPACK's band
+GATHERED = {"cholesky": {"pc_type": "lu", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"}}
+# several ranks: the gathered exact factor is PETSc's LU (a 1 521-row 2-D matrix's takes 1.14 ms against its
+# Cholesky's 1.58; the Cholesky's inertia is not at hand inside PCREDUNDANT)
 BLOCKS = {"pc_type": "bjacobi", "sub_pc_type": "icc", "sub_pc_factor_shift_type": "positive_definite"}
 OVERLAP = 4             # 'asm': layers each rank's block grows by (rotated anisotropy on 2 ranks, 262 144 rows: 1, 2, 4
 # and 8 layers 141, 114, 99 and 87 CG iterations on the 30-degree case, where each block alone took 241)
@@ -42,15 +45,17 @@ BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 
 
 def factor_options(kind: str, ranks: int) -> dict:
-    """The factor's PETSc options (:data:`FACTORS`); on several ranks inside PCREDUNDANT, which gathers the whole
+    """The factor's PETSc options (:data:`FACTORS`); on several ranks (:data:`GATHERED` where it differs) inside
+    PCREDUNDANT, which gathers the whole
     matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
     dominant, shifted, wide or grid-aligned rows, a graph that is no mesh): ICC(0) of each rank's diagonal block
     (:data:`BLOCKS`), and for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers,
     additive and symmetric (:data:`GROWN`)."""
     if kind in BLOCKED:
         return dict(BLOCKED[kind])
-    opts = FACTORS[kind]
-    return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in opts.items()}} if ranks > 1 else dict(opts)
+    if ranks == 1:
+        return dict(FACTORS[kind])
+    return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in GATHERED.get(kind, FACTORS[kind]).items()}}
 
 
 class DirectPC:

@@ -12,6 +12,7 @@ CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (one iteration)",
                "band": "one banded Cholesky factor (one iteration)",
                "icc": "ICC(0), whose iterations cost less here than an exact factor or the two-level method"}
 CHOSEN_TYPE = {"cholesky": "cholesky", "band": "python", "icc": "icc"}   # the PC type each choice makes
+GATHERED_TYPE, GATHERED_TEXT = {"cholesky": "lu"}, {"cholesky": "one sparse LU factor (one iteration)"}   # gathered
 
 
 def describe(d, overlap) -> list:
@@ -23,10 +24,12 @@ def describe(d, overlap) -> list:
         where = f" (options -{d.prefix}sub_*)"
         memory = f"memory on this rank: {d.nbytes / max(d.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
     elif d.ranks > 1:
-        asked = PETSc.Options(d.prefix).getString("redundant_pc_type", CHOSEN_TYPE[d.kind])
+        chosen = GATHERED_TYPE.get(d.kind, CHOSEN_TYPE[d.kind])
+        what = GATHERED_TEXT.get(d.kind, what)
+        asked = PETSc.Options(d.prefix).getString("redundant_pc_type", chosen)
         factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if d.kind == "band" else
-                  f"{CHOSEN_TYPE[d.kind]}, {d.ordering} ordering")
-        if asked != CHOSEN_TYPE[d.kind]:              # (PCREDUNDANT's inner PC has no getter in petsc4py)
+                  f"{chosen}, {d.ordering} ordering")
+        if asked != chosen:                           # (PCREDUNDANT's inner PC has no getter in petsc4py)
             what = f"PETSc's {asked}, as -{d.prefix}redundant_pc_type asks (chosen: {what})"
             factor = asked
         where = (f", gathered and factored on each of the {d.ranks} ranks (PCREDUNDANT: "
