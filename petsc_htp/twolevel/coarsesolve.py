@@ -41,7 +41,8 @@ MESH_GROWTH = {2: 2.1, 3: 3.0}     # E's ball growth above which the LU chosen f
 # GAMG: a 2-D grid of 100 000 rows with 1 % of its nodes joined at random (shortcuts) made E of 8 978 rows grow as
 # 2.47 and its LU fill 118 x (7.9 s against 0.3 s); 2-D coarse operators of the foreign study 1.68-1.81 (the P1
 # triangles numbered at random 1.92 on 2 ranks), 3-D 2.5-2.6. Milder shortcuts stay below: 0.3 % of the nodes, 1.89,
-# an LU of fill 60 (1.5 s)
+# an LU of fill 60 (1.5 s). Aggregation leaves only: Morton leaves' coarse graph grows faster (the own frames at
+# 128^2: 2.31) and its LU serves (GAMG there: 32 CG iterations and 39.6 ms a frame against 28 and 22.6)
 GROWTH_SEEDS = 32        # ... from this many seeds' balls (8 put the foreign study's P1 triangles at 1.88 on 2 ranks)
 DIRECT = ("lu", "cholesky", "svd")         # PC types that solve E (also inside PCREDUNDANT: :meth:`CoarseSolve._direct`)
 
@@ -69,7 +70,8 @@ class CoarseSolve:
         PCREDUNDANT's, takes it as BAIJ where W's columns come in equal blocks)."""
         if self.pc is None:
             st, E = self.st, ops.E
-            if self.chosen and self.solver == "lu" and not (st.linear or st.dense or st.fixed) and self._no_mesh(E):
+            if self.chosen and self.solver == "lu" and st.leaves.kind == "aggregation" and not (
+                    st.linear or st.dense or st.fixed) and self._no_mesh(E):
                 self.solver = "gamg"
             defaults = sizing.coarse_options(st.dim, st.coll.size > 1, self.solver, st.leaves.kind, st.ordered,
                                              st.fixed)
