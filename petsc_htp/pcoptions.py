@@ -50,7 +50,8 @@ HELP = {
     "coarse_solver": "twolevel: auto (LU; in 3-D two GAMG V-cycles once the coarse operator of paired "
                      "aggregation leaves has more than 1536 rows, one once another has more than 8192, in 2-D two "
                      "once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
-                     "16384 on several ranks), lu (redundant on more than one rank) or gamg; -htp_cs_* options "
+                     "16384 on several ranks, or where their coarse graph grows as no mesh's), lu (redundant on "
+                     "more than one rank) or gamg; -htp_cs_* options "
                      "configure it",
     "coarse_space_every": "twolevel: compute the coarse space at every k-th numeric setup; the ones between keep it "
                           "and refresh A W, W^T A W and the leaf factor (like -pc_gamg_reuse_interpolation); 0: "
