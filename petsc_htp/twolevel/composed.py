@@ -103,7 +103,7 @@ class TwoLevelPC:
     def numeric(self, rows, density=None, keep_space=False):
         """New values (``rows``: this rank's rows, the analysed pattern); ``keep_space`` keeps W's values."""
         lay, T, data = self.st.lay, {}, rows.data
-        solved = dominance.pinned(rows, lay.start, dominance.SOLVED, self.st.coll)      # their diagonal decides them
+        solved, ratios = dominance.pinned(rows, lay.start, self.st.coll)      # rows their diagonal decides
         with phase("HTPLeafFactor", T, "leaf"):
             o_values = self.ops.couplings(data)
             ground = self.space.null(self.mat, rows)
@@ -129,7 +129,7 @@ class TwoLevelPC:
                 if new_space and self.space.shared:           # the borrowed factor gets D back, also on errors
                     with phase("HTPLeafFactor", T, "leaf"):
                         self.leafsolver.numeric(data)
-        left = dominance.left_out(rows, lay.start, solved, self.space.weights is not None, self.st.coll)
+        left = dominance.left_out(solved, ratios, self.space.weights is not None)
         with phase("HTPProducts", T, "products"):
             self.ops.products(self.space.finish(*left), self.leafsolver.exact, self.forms.needs_F())
         with phase("HTPCoarseFactor", T, "coarse_factor"):

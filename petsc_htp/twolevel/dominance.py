@@ -61,33 +61,35 @@ def _smallest(rows, start, picked) -> float:
     return float((diag[coupled] / off[coupled]).min() - 1.0)
 
 
-def pinned(rows, start, ratio=PINNED, coll=None) -> np.ndarray:
-    """This rank's rows (local indices) pinned by their diagonal, a_ii >= ``ratio`` sum_j |a_ij| > 0 (``rows``:
-    CSR, global columns, local rows from ``start``): a penalty method's Dirichlet rows. In W they would put a_ii
-    into E = W^T A W beside the piece's other entries, which rounding then loses (tgv = 1e30 on P1 triangles: a
-    "converged" CG at a true residual of 0.56, the balanced form indefinite); the leaf solve takes them exactly.
-    Only rows whose diagonal passes :data:`SCREEN` times a typical one are looked at (6 ms at 1M rows): the least
-    over the ranks (``coll``, collective; a rank whose rows are mostly a penalty's, boundary rows numbered last, took
-    its own median for typical and none of its rows: 377 CG iterations on 9 ranks against 25 on one)."""
+def pinned(rows, start, coll=None) -> tuple:
+    """(this rank's rows, local indices, that their own diagonal decides, a_ii >= :data:`SOLVED` sum_j |a_ij| > 0,
+    and each one's a_ii / sum_j |a_ij|) (``rows``: CSR, global columns, local rows from ``start``): a penalty method's
+    Dirichlet rows, pinned from :data:`PINNED`. In W they would put a_ii into E = W^T A W beside the piece's other
+    entries, which rounding then loses (tgv = 1e30 on P1 triangles: a "converged" CG at a true residual of 0.56, the
+    balanced form indefinite); the leaf solve takes them exactly. Only rows whose diagonal passes :data:`SCREEN` times
+    a typical one are looked at (6 ms at 1M rows): the least over the ranks (``coll``, collective; a rank whose rows
+    are mostly a penalty's, boundary rows numbered last, took its own median for typical and none of its rows: 377 CG
+    iterations on 9 ranks against 25 on one)."""
     diag = np.abs(rows.diagonal(k=start))
     sample = diag if diag.size <= TYPICAL else diag[np.random.default_rng(0).integers(0, diag.size, TYPICAL)]
     typical = np.median(sample) if sample.size else np.inf
     if coll is not None:
         typical = float(coll.min_array(np.array([typical]))[0])
     if not diag.size:
-        return np.zeros(0, dtype=np.int64)
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
     high = np.flatnonzero(diag > SCREEN * typical)
     where, owner = row_entries(rows.indptr, high)
     offdiag = rows.indices[where] != high[owner] + start            # summed apart: 1e30 + 4 - 1e30 is 0
     off = np.bincount(owner[offdiag], np.abs(rows.data[where[offdiag]]), minlength=high.size)
-    return high[(off > 0) & (diag[high] >= ratio * off)]
+    keep = (off > 0) & (diag[high] >= SOLVED * off)
+    return high[keep], diag[high][keep] / off[keep]
 
 
-def left_out(rows, start, solved, weighted, coll=None) -> tuple:
-    """(this rank's rows W leaves out, the bound they pass): those their own diagonal decides (``solved``,
-    :data:`SOLVED`), but under row-scaled piece vectors (``weighted``), which weigh them by |a_ii|^-1/2 already, only
-    the pinned ones (:data:`PINNED`; collective there)."""
-    return (pinned(rows, start, PINNED, coll), PINNED) if weighted else (solved, SOLVED)
+def left_out(solved, ratios, weighted) -> tuple:
+    """(this rank's rows W leaves out, the bound they pass): those their own diagonal decides (``solved``, with their
+    ``ratios``: :func:`pinned`), but under row-scaled piece vectors (``weighted``), which weigh them by |a_ii|^-1/2
+    already, only the pinned ones (:data:`PINNED`)."""
+    return (solved[ratios >= PINNED], PINNED) if weighted else (solved, SOLVED)
 
 
 def holds(rows, start) -> bool:
