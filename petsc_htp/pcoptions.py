@@ -58,8 +58,9 @@ HELP = {
                           "keep it while it serves, at most 4 setups and while the last solve took at most 1.25 x "
                           "+ 2 the iterations of the first with it",
     "form": "twolevel: auto (deflated; balanced under a KSP that needs a symmetric M, with one GAMG V-cycle "
-            "on aggregation leaves or V-cycles whose forward error on a probe is above 0.4), deflated (one coarse solve "
-            "per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse solves)",
+            "on aggregation leaves, V-cycles whose forward error on a probe is above 0.4 or any under -htp_overlap), "
+            "deflated (one coarse solve per apply, started so that W^T r0 = 0) or balanced (symmetric, two coarse "
+            "solves)",
     "overlap": "twolevel: 0 for exact leaf solves, k > 0 for additive Schwarz on leaves grown by k layers of "
                "neighbours within each rank (the forms then go through A W)",
     "direct_max": "twolevel: with no other twolevel option set, one factor of the whole matrix replaces the two-level "

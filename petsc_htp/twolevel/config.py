@@ -27,7 +27,8 @@ class Config:
     tol : float
         With tol > 0, r more seeds per leaf, kept by their Ritz value (see :mod:`petsc_htp.twolevel.coarsespace`).
     form : str
-        auto (deflated; balanced under a KSP that needs a symmetric M or where the coarse solve is one V-cycle),
+        auto (deflated; balanced under a KSP that needs a symmetric M, or where the coarse solve is one V-cycle, a
+        loose one, or V-cycles under overlapping leaves),
         deflated or balanced.
     overlap : int
         0: exact leaf solves; k > 0: additive Schwarz on leaves grown by k layers (:mod:`petsc_htp.twolevel.leafsolvers`).

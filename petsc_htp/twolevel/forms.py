@@ -33,7 +33,7 @@ class Forms:
 
     def __init__(self, mat, ops, leafsolver, coarse, form):
         self.mat, self.ops, self.B, self.coarse, self.configured = mat, ops, leafsolver, coarse, form
-        self.auto, self.forced = "deflated" if coarse.deflatable else "balanced", None
+        self.auto, self.forced = "deflated" if self._deflatable() else "balanced", None
         self.started = False          # inside a KSPSolve whose presolve made the deflated start
         self.v, self.t = mat.createVecLeft(), mat.createVecLeft()
         self._leaf_ev, self._coarse_ev = event("HTPLeafSolve"), event("HTPCoarseSolve")
@@ -48,9 +48,16 @@ class Forms:
     def settle(self):
         """After the coarse solver's setup: the 'auto' form it calls for (until a presolve decides), and no F where
         the form as written has no use for it (it was made before the coarse PC's type was known)."""
-        self.auto = "deflated" if self.coarse.deflatable else "balanced"
+        self.auto = "deflated" if self._deflatable() else "balanced"
         if self.coarse.general:
             self.ops.drop_F()
+
+    def _deflatable(self) -> bool:
+        """Whether the coarse solve suits the deflated form (:attr:`.coarsesolve.CoarseSolve.deflatable`), and for
+        overlapping leaves is a factor: their B A reaches about the overlap count, and a V-cycle's error grown by it
+        took CG from 34 iterations (LU) to none that converged (P1 tets, 27 000 rows, ``-htp_overlap 1``; 38 in the
+        balanced form)."""
+        return self.coarse.deflatable and (self.coarse.direct or not self.B.summed)
 
     def needs_F(self) -> bool:
         """Whether the form in use needs F = W^T C."""
@@ -136,16 +143,16 @@ class Forms:
         the start grow the residual (a row scaling far from constant, a long chain), its divergence tolerance grows
         alike for the solve, as PETSc's test at iteration 0 compares with ||b|| (D A D, D in 1e-3 .. 1e3: 2.2e4
         ||b||, DIVERGED_DTOL before the first iteration; CG then converges in 42; the preconditioned norms barely
-        grow). Under 'auto' the solve takes the balanced form when the KSP is not one of
-        :data:`DEFLATED_KSPS` (PREONLY included: an outer method applies M), the preconditioner is ``stale`` (reused
-        on new values, or made from a Pmat other than the KSP's Amat: D B = I no longer holds for A; the deflated
-        start then left a Pmat + 0.3 diag solve at a residual of 1e5 and a Pmat + 0.01 diag CG solve stalled), the
-        coarse solve is not exact (:func:`.sizing.coarse_exact`) or needs refinement (:mod:`.coarsesolve`: a contrast of
-        1e6 at 262 144 rows, where the deflated form still broke down on 3 of 4 frames and the balanced one on
-        none)."""
+        grow). Under 'auto' the solve takes the balanced form when the KSP is not one of :data:`DEFLATED_KSPS`
+        (PREONLY included: an outer method applies M), the preconditioner is ``stale`` (reused on new values, or made
+        from a Pmat other than the KSP's Amat: D B = I no longer holds for A; the deflated start then left a Pmat +
+        0.3 diag solve at a residual of 1e5 and a Pmat + 0.01 diag CG solve stalled), or the coarse solve does not
+        suit it (:meth:`_deflatable`: not exact, :func:`.sizing.coarse_exact`; needing refinement, :mod:`.coarsesolve`:
+        a contrast of 1e6 at 262 144 rows, where the deflated form still broke down on 3 of 4 frames and the balanced
+        one on none; V-cycles under overlapping leaves)."""
         kind = ksp.getType()
         if self.configured == "auto":
-            inexact = kind not in DEFLATED_KSPS or stale or not self.coarse.deflatable
+            inexact = kind not in DEFLATED_KSPS or stale or not self._deflatable()
             self.auto = "balanced" if inexact else "deflated"
             if self.needs_F():
                 self.ops.need_F()

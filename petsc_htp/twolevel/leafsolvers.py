@@ -80,6 +80,8 @@ class ExactLeaves:
         D is in A's order on one rank: B applies to the KSP's vectors as they are.
     """
 
+    summed = False
+
     def __init__(self, lay, values, make_pc, direct):
         self.lay, self.direct = lay, direct
         self.f = _Factored(lay.d_indptr, lay.d_indices, values, None if lay.d_in_a_order else lay.perm, make_pc)
@@ -130,6 +132,7 @@ class OverlappingLeaves:
     """
 
     exact = False
+    summed = True       # its pieces overlap: B A reaches about the overlap count, which a coarse error amplifies
 
     def __init__(self, lay, rows, overlap, make_pc):
         n, start = lay.n, lay.start
