@@ -95,8 +95,7 @@ class HTPPC(Inspection):
         self.analysis_count = self.numeric_count = 0
         self.setup_ms, self.fallback_active, self.fallback_reason = float("nan"), False, ""
         self.n = self.inv_diag = self._pattern = self._values = self._coords = self._changed = self.cut = None
-        self._started = 0.0                              # when the last KSPSolve began (preSolve)
-        self._csr, self.threads_note, self._help_shown = (None, None, None), "", False
+        self._started, self._csr, self.threads_note, self._help_shown = 0.0, (None, None, None), "", False
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
@@ -232,11 +231,12 @@ class HTPPC(Inspection):
 
     @unwinding
     def preSolve(self, pc, ksp, b, x):
-        """Before each KSPSolve: the variant's start (the two-level deflated form corrects x0); settings a solve that
-        raised before its postSolve kept are given back first; a context set up nowhere yet sets itself up (a second
-        KSPSetFromOptions makes a new one, petsc4py reading -pc_python_type again, and PETSc skips PCSetUp)."""
+        """Before each KSPSolve: the variant's start (the deflated form corrects x0); settings a raised solve kept
+        are given back first; a context set up nowhere yet sets itself up (a second KSPSetFromOptions makes a new
+        one, PETSc skipping PCSetUp), and anew where a PREONLY KSP applies it once (the variant's ``once``)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
-        if self.setup is None:
+        if self.setup is None or self.variant.once(ksp.getType(), self.setup):
+            self._free()
             self.setUp(pc)
         if not self.fallback_active:
             amat, pmat = pc.getOperators()

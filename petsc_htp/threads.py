@@ -13,7 +13,8 @@ import os
 import sys
 
 SETTERS = (("openblas_set_num_threads", "openblas_get_num_threads"),
-           ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),
+           ("scipy_openblas_set_num_threads64_", "scipy_openblas_get_num_threads64_"),     # NumPy's wheel's
+           ("scipy_openblas_set_num_threads", "scipy_openblas_get_num_threads"),   # SciPy's (scipy.linalg's LAPACK)
            ("omp_set_num_threads", "omp_get_max_threads"))
 LIKELY = ("blas", "lapack", "omp")   # loaded names worth resolving (a link named so may lead to a pool)
 _FOUND = {}          # library path -> its (setter, getter) pairs

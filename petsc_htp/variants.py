@@ -15,6 +15,7 @@ options prefix, with
 - ``solved(setup, its)``: called after each KSPSolve with its iterations;
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
   the couplings, once the couplings moved);
+- ``once(ksp_type, setup)``: whether a KSP of that type, which applies M once (PREONLY), calls for a new analysis;
 - ``destroy(analysis)``: free what the analysis and its setups hold;
 - ``title``: what runs, in a few words; ``model``: a line naming the model, or None.
 
@@ -63,6 +64,7 @@ class TwoLevel:
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         self.choice = None                         # whether and why the whole matrix is factored (WholeChoice)
+        self.applied_once = False                  # under a KSPPREONLY (:meth:`once`)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -121,8 +123,17 @@ class TwoLevel:
         (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective)."""
         from .whole import WholeChoice
 
-        self.choice = WholeChoice(self.opts)
+        self.choice = WholeChoice(self.opts, self.applied_once)
         return self.choice.kind(mat, A, coords)
+
+    def once(self, ksp_type, setup) -> bool:
+        """Whether a KSP of ``ksp_type`` that applies M once (PREONLY) calls for a new analysis: ``setup`` is
+        ICC(0), chosen for its iterations; from the first such KSP on the choice takes exact factors only
+        (:class:`~petsc_htp.whole.WholeChoice`)."""
+        if ksp_type != "preonly" or self.applied_once:
+            return False
+        self.applied_once = True
+        return getattr(setup, "kind", None) in ("icc", "bjacobi", "asm")
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,

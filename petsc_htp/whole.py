@@ -21,10 +21,13 @@ from .collective import Collective
 class WholeChoice:
     """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
     alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_made` (what the choice made
-    that the factor takes, once)."""
+    that the factor takes, once). ``once``: M is applied once a solve (a KSPPREONLY's PC: PCMG's coarse solve,
+    PCFIELDSPLIT's splits), which takes exact factors only: ICC(0) is chosen for the iterations it saves, and one
+    application of it is no solve (PCMG's 9-point coarse level of 4 225 rows: 31 outer CG iterations, 8 with its
+    Cholesky; PCFIELDSPLIT's shifted split of 66 049 rows: 2 945 FGMRES iterations, 124 with exact splits)."""
 
-    def __init__(self, opts):
-        self.opts, self.why, self.holds, self.made = opts, None, None, None
+    def __init__(self, opts, once=False):
+        self.opts, self.why, self.holds, self.made, self.once = opts, None, None, None, once
 
     def take_made(self):
         """What the choice made that the factor takes, or None, handed over once: the ICC(0) trial's PC, set up on the
@@ -48,12 +51,14 @@ class WholeChoice:
         n, coll = mat.getSize()[0], Collective(mat.getComm())
         per_row = coll.sum(A.nnz) / max(n, 1)
         if coll.size > 1 and coll.any(A.shape[0] == 0):
-            return self._empty_rank(n, coll.size, per_row)
+            return self._exact(self._empty_rank(n, coll.size, per_row))
         if not plain:
             return None
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
+            if self.once:                       # ICC(0) is chosen for its iterations: applied once, no solve
+                return self._banded(A) if coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX else None
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
                 kind = self._graph(mat, A, coll, per_row)
@@ -63,7 +68,15 @@ class WholeChoice:
             return kind
         if coll.size == 1 and (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(A):
             return "band"                                   # no graph walk (0.5 ms at 1000 rows)
-        return self._small(mat, A, coll, n, per_row, coords)
+        return self._exact(self._small(mat, A, coll, n, per_row, coords))
+
+    def _exact(self, kind):
+        """``kind``, or where M is applied once (:attr:`once`) the exact factor in place of ICC(0), :attr:`why`
+        saying so."""
+        if not (self.once and kind == "icc"):
+            return kind
+        self.why = "applied once (KSPPREONLY), so exact in place of ICC(0), whose iterations it does not make"
+        return "cholesky"
 
     def _small(self, mat, A, coll, n, per_row, coords):
         """:func:`.twolevel.sizing.whole_factor`'s answer for a small matrix, without the graph walk (0.6 ms at 1000

@@ -467,6 +467,28 @@ def test_a_heat_step_with_shifted_rows_gets_icc_of_the_whole_matrix(tmp_path):
     assert "ICC(0) of each rank's diagonal block (PCBJACOBI)" in proc.stdout and relres <= 1.01e-8
 
 
+def test_a_preonly_ksp_gets_exact_factors_or_the_two_level_method_not_icc():
+    """A KSPPREONLY applies M once (PCMG's coarse solve, PCFIELDSPLIT's splits), and one ICC(0) is no solve: where
+    ICC(0) was chosen for its iterations the first such solve makes a new analysis, an exact factor at the small
+    sizes and the two-level method above (PCMG's 9-point coarse level of 4 225 rows had taken the outer CG to 31
+    iterations, 8 with its Cholesky). A CG KSP on the same matrices keeps ICC(0)."""
+    side = 65
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    nine = (sp.kron(T, T) + sp.kronsum(T, T)).tocsr()                  # rich rows: ICC(0) at this size
+    big = (sp.kronsum(*2 * [sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (120, 120))]) + 0.5 * sp.identity(14400)).tocsr()
+    for A, once in ((nine, "one sparse Cholesky factor"), (big, "leaves: aggregation")):
+        b = np.random.default_rng(1).standard_normal(A.shape[0])
+        assert lines(solve(A, b)[3]).startswith("whole matrix: ICC(0)")
+        reason, its, relres, ksp, _ = solve(A, b, ksp_type="preonly", ksp_norm_type="none")
+        ctx = ksp.getPC().getPythonContext()
+        assert reason > 0 and ctx.analysis_count == 2 and once in lines(ksp), lines(ksp)
+        assert relres <= (1e-10 if A is nine else 0.5), relres          # exact, or one two-level application
+        if A is nine:
+            assert "applied once (KSPPREONLY)" in lines(ksp)
+        ksp.solve(*ksp.getOperators()[0].createVecs())                  # later solves keep it (no third analysis)
+        assert ctx.analysis_count == 2
+
+
 def test_a_growing_time_step_makes_the_shifted_rows_trial_again():
     """A time step that grows on one KSP (a TS with adaptive steps): values whose row sums fell below half the share
     ICC(0) was chosen at make a new analysis, whose trial chooses again (a 2-D heat step of 65 536 rows had kept

@@ -57,6 +57,11 @@ class Paper:
         return False
 
     @staticmethod
+    def once(ksp_type, setup) -> bool:
+        """The network's M is the same under any KSP."""
+        return False
+
+    @staticmethod
     def inner_pcs(setup) -> dict:
         """No inner PETSc solver."""
         return {}
