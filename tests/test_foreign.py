@@ -316,15 +316,45 @@ def _random_graph(n, per_row, seed=0) -> sp.csr_matrix:
     return A
 
 
-def _on_two_ranks(A, path):
-    """``A`` written to the PETSc binary file ``path`` and solved by examples/matrix_file.py on 2 ranks with HTPPC as
-    it comes (-ksp_view): the finished process."""
+def _on_two_ranks(A, path, b=None):
+    """``A`` (and the right-hand side ``b``, else ones) written to the PETSc binary file ``path`` and solved by
+    examples/matrix_file.py on 2 ranks with HTPPC as it comes (-ksp_view): the finished process."""
     mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType), A.data),
                                 comm=PETSc.COMM_SELF)
     viewer = PETSc.Viewer().createBinary(str(path), "w", comm=PETSc.COMM_SELF)
     mat.view(viewer)
+    if b is not None:
+        PETSc.Vec().createWithArray(b, comm=PETSc.COMM_SELF).view(viewer)
     viewer.destroy()
     return _mpirun(2, EXAMPLE.parent / "matrix_file.py", "-f", str(path), *HTPPC_FLAGS)
+
+
+def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own(tmp_path):
+    """A random field of contrast 1e4 (a fifth of the couplings strong): a strong coupling that joins two ranks
+    cannot lie inside a leaf, and the pair's common mode left the coarse space (CG: 21 iterations on one rank, 85 on
+    two, now 29); rows whose couplings to the other rank weigh half their diagonal are leaves of one row each, so the mode
+    lies in their coarse columns. A split that cuts many such rows (more than ranksplit.CUT_ROWS) makes none."""
+    from petsc_htp.ranksplit import CUT_ROWS, cut_rows
+
+    side, rng = 128, np.random.default_rng(2)
+    kx = np.where(rng.random((side + 1, side)) < 0.2, 1e4, 1.0)        # kx[i, j]: between nodes (i - 1, j), (i, j)
+    ky = np.where(rng.random((side, side + 1)) < 0.2, 1e4, 1.0)        # Dirichlet nodes around, eliminated
+    node = np.arange(side * side).reshape(side, side).T                  # node (i, j) is row j * side + i
+    x_edges = sp.coo_matrix((-kx[1:-1].ravel(), (node[:-1].ravel(), node[1:].ravel())), shape=(side * side,) * 2)
+    y_edges = sp.coo_matrix((-ky[:, 1:-1].ravel(), (node[:, :-1].ravel(), node[:, 1:].ravel())),
+                            shape=(side * side,) * 2)
+    diag = (kx[:-1] + kx[1:] + ky[:, :-1] + ky[:, 1:]).T.ravel()       # in row order
+    A = (x_edges + x_edges.T + y_edges + y_edges.T + sp.diags(diag)).tocsr()
+    half = side * side // 2
+    cut = cut_rows(A[:half], A[:half, :half].tocsr())
+    assert 0 < np.count_nonzero(cut) <= CUT_ROWS * half
+    assert not cut_rows(A[:half], sp.csr_matrix(A[:half, :half].diagonal() * sp.identity(half))).any()   # all cut
+    b = np.random.default_rng(3).standard_normal(side * side)
+    reason, its, relres, _, _ = solve(A, b)
+    proc = _on_two_ranks(A, tmp_path / "field.petsc", b)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    two = int(proc.stdout.split("iterations:")[1].split()[0])
+    assert reason > 0 and relres <= 1e-8 and two <= 1.5 * its + 2, (its, two)
 
 
 def test_a_graph_that_is_no_mesh_gets_icc_of_the_whole_matrix_at_any_size(tmp_path):

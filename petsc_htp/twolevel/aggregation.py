@@ -18,7 +18,10 @@ Rows are treated by what couples them:
 - *decoupled* rows, whose off-diagonal entries are all zero or absent (a DMDA's Dirichlet rows, stored as
   identity rows with explicit zeros), are gathered into leaves of :data:`DECOUPLED_LEAF` rows of their own; the
   leaf solve is exact on them and they get no coarse vector (:class:`~petsc_htp.twolevel.leaflayout.LeafLayout`);
-- rows with couplings but no strong one join the aggregate of their largest coupling.
+- rows with couplings but no strong one join the aggregate of their largest coupling;
+- on several ranks, rows whose couplings to other ranks weigh half their diagonal or more
+  (:func:`petsc_htp.ranksplit.cut_rows`) are leaves of one row each: the strong coupling a rank's aggregates
+  cannot keep then lies between two coarse columns.
 
 Within a leaf, rows keep the matrix's order, but where its numbering scatters the leaves
 (:func:`.leaves.by_degree`).
@@ -165,13 +168,14 @@ def node_graph(A, node) -> sp.csr_matrix:
     return G
 
 
-def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0) -> np.ndarray:
+def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
     ``theta`` (None: :func:`threshold`'s for A; the standard passes after the first take the same on the aggregates'
     graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
-    module docstring). With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset``
-    rows into its node) is aggregated, so a leaf holds whole nodes."""
+    module docstring), and the rows ``alone`` (boolean, optional: :func:`..ranksplit.cut_rows`) in leaves of one row
+    each. With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset`` rows into its
+    node) is aggregated, so a leaf holds whole nodes (``alone`` is not used)."""
     if second not in SECOND:
         raise ValueError(f"unknown aggregation pass {second!r}; expected one of {', '.join(SECOND)}")
     n = A.shape[0]
@@ -179,11 +183,12 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0) 
         node = nodes(n, bs, offset)
         return aggregates(node_graph(A, node), theta, passes, second=second)[node]
     lone = decoupled_rows(A)
-    keep = np.flatnonzero(~lone)
+    alone = np.zeros(n, dtype=bool) if alone is None else alone & ~lone
+    keep = np.flatnonzero(~lone & ~alone)
     part = np.full(n, -1, dtype=np.int64)
     count = 0
     if keep.size:
-        M = A if not lone.any() else A[keep][:, keep].tocsr()
+        M = A if keep.size == n else A[keep][:, keep].tocsr()
         agg = np.arange(keep.size)
         theta = threshold(sampled_shares(M)[1]) if theta is None else theta
         for step in range(passes):
@@ -195,6 +200,9 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0) 
             if step + 1 < passes:
                 M = _graph(M, node, count)
         part[keep] = agg
+    if alone.any():                                                     # rows strongly coupled to other ranks
+        part[alone] = count + np.arange(np.count_nonzero(alone))
+        count += np.count_nonzero(alone)
     if lone.any():                                                      # decoupled rows: leaves of their own
         idle = np.flatnonzero(lone)
         part[idle] = count + np.arange(idle.size) // DECOUPLED_LEAF

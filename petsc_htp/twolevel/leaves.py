@@ -274,7 +274,8 @@ def _cut_fraction(A, leaves) -> float:
     return float(np.count_nonzero(leaf[rows[off]] != leaf[A.indices[off]]) / max(np.count_nonzero(off), 1))
 
 
-def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard", theta=None, offset=0) -> Leaves:
+def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standard", theta=None, offset=0,
+                  alone=None) -> Leaves:
     """Leaves for ``A`` by layout.
 
     Parameters
@@ -298,13 +299,15 @@ def choose_leaves(A, coords=None, layout="auto", leaf=128, bs=1, second="standar
         Aggregation leaves: the kind of the passes after the first (:func:`~.aggregation.aggregates`).
     theta : float, optional
         Aggregation leaves: the first pass's strength threshold (None: :func:`~.aggregation.threshold`'s).
+    alone : numpy.ndarray of bool, optional
+        Aggregation leaves: rows that are leaves of their own (:func:`petsc_htp.ranksplit.cut_rows`).
     """
     if layout not in LAYOUTS:
         raise ValueError(f"unknown leaf layout {layout!r}; expected one of {', '.join(LAYOUTS)}")
     A = check_square(A)
     t0 = time.perf_counter()
     if layout == "aggregation" or (layout == "auto" and coords is None):
-        part = aggregates(A, theta, bs=bs, second=second, offset=offset)
+        part = aggregates(A, theta, bs=bs, second=second, offset=offset, alone=alone)
         return part_leaves(A, part, "aggregation", t0, smooth=False)
     if layout == "graph":
         xy = grid_coordinates(A)

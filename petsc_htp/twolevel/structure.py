@@ -15,7 +15,7 @@ import numpy as np
 from . import blocksize, coarseorder, nearnull, nullspace, sizing
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values
-from ..ranksplit import crossing
+from ..ranksplit import crossing, cut_rows
 from .aggregation import THETA, sampled_shares, threshold
 from .csr import compact, row_entries
 from .graphshape import graph_shape, hub_rows
@@ -86,7 +86,7 @@ class Structure:
         # from every rank's sampled rows together (the least of the ranks' own: a rank of penalty rows set 5e-7)
         self.theta = THETA if largest is None else threshold(coll.gather_rows(largest[:, None]).ravel())
         self.leaves = choose_leaves(block, coords, cfg.ordering, cfg.leaf, self.bs, cfg.aggregation,
-                                    self.theta, mat.getOwnershipRange()[0] % self.bs)
+                                    self.theta, mat.getOwnershipRange()[0] % self.bs, cut_rows(rows, block))
         learned = cfg.coarse == "learned"             # only the network reads the block again (the analysis)
         self.block = (block if coll.size == 1 else block.copy()) if learned else None
 
