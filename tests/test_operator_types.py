@@ -257,3 +257,20 @@ def test_an_mpiaij_operator_on_one_rank_converges_as_seqaij_does(kind):
     assert A.getType() == kind and ksp.getConvergedReason() > 0
     assert np.linalg.norm(S @ x.getArray() - 1.0) <= 1.01e-8 * np.sqrt(S.shape[0])
     assert ksp.getIterationNumber() <= 35 and type(ksp.getPC().getPythonContext().setup).__name__ == "TwoLevelPC"
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_an_mpisbaij_matrix_set_from_its_upper_triangle_gets_a_true_aij_copy(ranks):
+    """An MPISBAIJ matrix of 3x3 blocks set row by row from its upper triangle (MAT_IGNORE_LOWER_TRIANGULAR, as an
+    assembly loop writes it): PETSc's own conversion to MPIAIJ reads its diagonal blocks wrongly (a product off by
+    about 25; 3-D elasticity of 46 800 rows on 2 ranks then stopped at 3 000 CG iterations), HTPPC's copy is U + U^T
+    - diag(U) of the upper triangle and multiplies as the SBAIJ matrix does."""
+    case = Path(__file__).parent / "sbaij_case.py"
+    found = {}
+    for how in ("raw", "htppc"):
+        out = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(case), how], cwd=ROOT,
+                             capture_output=True, text=True, timeout=300)
+        assert out.returncode == 0, out.stdout + out.stderr
+        found[how] = float(re.search(r"difference (\S+)", out.stdout).group(1))
+    assert found["raw"] > 1.0 and found["htppc"] <= 1e-12, found
