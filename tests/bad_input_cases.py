@@ -247,6 +247,13 @@ def case_null_components_detected():
     return outcome(dist(A), b)[0]
 
 
+def case_inconsistent_components():
+    """Three components, no null space attached, a right-hand side not summing to zero on each: the named error, whose
+    advice is one vector per component (the constant alone is not this matrix's null space)."""
+    A, reg, b = _three_regions()
+    return outcome(dist(A), b + reg)[0]
+
+
 def case_pattern_change():
     """The same KSP gets a matrix of the same size with more couplings (a new pattern)."""
     out, ksp = outcome(dist(BASE.A, regions(BASE.A)), BASE.b)

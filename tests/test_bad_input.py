@@ -58,6 +58,10 @@ EXPECTED = {
     "inconsistent_then_attached": CONVERGED,
     "inconsistent_three_times": CONVERGED,
     "gathered_lu_asked": CONVERGED,
+    "inconsistent_components": (r"error: the matrix is singular \(its row sums vanish on 3 connected component\(s\), "
+                                r"and no MatNullSpace is attached\) .* attach the null space \(Mat.setNullSpace\("
+                                r"NullSpace\(\).create\(vectors=...\)\) with 3 orthonormal vectors, each constant on "
+                                r"one component and zero elsewhere: the constant alone is not its null space, .*"),
     "coordinates_on_some_ranks": {1: CONVERGED,
                                   2: r"error: coordinates are attached on 1 of the 2 ranks only: call petsc_htp.attach "
                                      r"on every rank of a parallel matrix"},

@@ -90,5 +90,12 @@ class RangeCheck:
                              f"MatNullSpace is attached) and the right-hand side is not in its range: its part along "
                              f"those components' constants is {part / norm:.1e} of its norm, above the KSP's "
                              f"tolerance (rtol {rtol:g}, atol {atol:g}), so no solution reaches it; attach the null "
-                             f"space (Mat.setNullSpace(NullSpace().create(constant=True)), with MAT_SYMMETRIC set: "
-                             f"the KSP then removes that part) or make b sum to zero on each component")
+                             f"space ({self._null_space()}, with MAT_SYMMETRIC set: the KSP then removes that part) "
+                             f"or make b sum to zero on each component")
+
+    def _null_space(self) -> str:
+        """How to make the null space these components call for."""
+        if self.k == 1:
+            return "Mat.setNullSpace(NullSpace().create(constant=True))"
+        return (f"Mat.setNullSpace(NullSpace().create(vectors=...)) with {self.k} orthonormal vectors, each constant "
+                f"on one component and zero elsewhere: the constant alone is not its null space")
