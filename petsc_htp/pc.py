@@ -233,9 +233,9 @@ class HTPPC(Inspection):
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the deflated form corrects x0); settings a raised solve kept
         are given back first; a context set up nowhere yet sets itself up (a second KSPSetFromOptions makes a new
-        one, PETSc skipping PCSetUp), and anew where a PREONLY KSP applies it once (the variant's ``once``)."""
+        one, PETSc skipping PCSetUp), and anew where the variant's ``once`` says so (PREONLY, Pmat apart)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
-        if self.setup is None or self.variant.once(ksp.getType(), self.setup):
+        if self.setup is None or self.variant.once(ksp, pc, self.setup):
             self._free()
             self.setUp(pc)
         if not self.fallback_active:

@@ -15,7 +15,8 @@ options prefix, with
 - ``solved(setup, its)``: called after each KSPSolve with its iterations;
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
   the couplings, once the couplings moved);
-- ``once(ksp_type, setup)``: whether a KSP of that type, which applies M once (PREONLY), calls for a new analysis;
+- ``once(ksp, pc, setup)``: whether a solve by ``ksp`` calls for a new analysis (M applied once, PREONLY; a Pmat
+  apart from the Amat);
 - ``destroy(analysis)``: free what the analysis and its setups hold;
 - ``title``: what runs, in a few words; ``model``: a line naming the model, or None.
 
@@ -64,7 +65,7 @@ class TwoLevel:
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         self.choice = None                         # whether and why the whole matrix is factored (WholeChoice)
-        self.applied_once = False                  # under a KSPPREONLY (:meth:`once`)
+        self.exact_only = None                     # why ICC(0) of the whole matrix does not serve (:meth:`once`)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
             from .twolevel import coarsenet
@@ -123,16 +124,24 @@ class TwoLevel:
         (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective)."""
         from .whole import WholeChoice
 
-        self.choice = WholeChoice(self.opts, self.applied_once)
+        self.choice = WholeChoice(self.opts, self.exact_only)
         return self.choice.kind(mat, A, coords)
 
-    def once(self, ksp_type, setup) -> bool:
-        """Whether a KSP of ``ksp_type`` that applies M once (PREONLY) calls for a new analysis: ``setup`` is
-        ICC(0), chosen for its iterations; from the first such KSP on the choice takes exact factors only
-        (:class:`~petsc_htp.whole.WholeChoice`)."""
-        if ksp_type != "preonly" or self.applied_once:
+    def once(self, ksp, pc, setup) -> bool:
+        """Whether the first solve by ``ksp`` that applies M once (a KSPPREONLY: PCMG's coarse solve, PCFIELDSPLIT's
+        splits) or with an assembled Amat other than the Pmat M is made from calls for a new analysis: ``setup`` is
+        ICC(0), chosen for the iterations it saves on its own operator (P = A with its diagonal x 1.05 took 519 CG
+        iterations on A, the two-level method 303); from then on the choice takes exact factors or the two-level
+        method (:class:`~petsc_htp.whole.WholeChoice`)."""
+        if self.exact_only is not None:
             return False
-        self.applied_once = True
+        amat, pmat = pc.getOperators()
+        if ksp.getType() == "preonly":
+            self.exact_only = "applied once (KSPPREONLY)"
+        elif amat.handle != pmat.handle and "aij" in amat.getType():
+            self.exact_only = "made from a Pmat other than the Amat"
+        else:
+            return False
         return getattr(setup, "kind", None) in ("icc", "bjacobi", "asm")
 
     def numeric(self, analysis, mat, A, density, previous):

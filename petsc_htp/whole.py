@@ -21,13 +21,14 @@ from .collective import Collective
 class WholeChoice:
     """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
     alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_made` (what the choice made
-    that the factor takes, once). ``once``: M is applied once a solve (a KSPPREONLY's PC: PCMG's coarse solve,
-    PCFIELDSPLIT's splits), which takes exact factors only: ICC(0) is chosen for the iterations it saves, and one
-    application of it is no solve (PCMG's 9-point coarse level of 4 225 rows: 31 outer CG iterations, 8 with its
-    Cholesky; PCFIELDSPLIT's shifted split of 66 049 rows: 2 945 FGMRES iterations, 124 with exact splits)."""
+    that the factor takes, once). ``exact_only``: why ICC(0) does not serve, else None: M applied once a solve (a
+    KSPPREONLY's PC: PCMG's coarse solve, PCFIELDSPLIT's splits) or made from a Pmat other than the Amat; the choice
+    then takes exact factors or the two-level method. ICC(0) is chosen for the iterations it saves on its own
+    operator, and one application of it is no solve (PCMG's 9-point coarse level of 4 225 rows: 31 outer CG
+    iterations, 8 with its Cholesky; PCFIELDSPLIT's shifted split of 66 049 rows: 2 945 FGMRES iterations, 204)."""
 
-    def __init__(self, opts, once=False):
-        self.opts, self.why, self.holds, self.made, self.once = opts, None, None, None, once
+    def __init__(self, opts, exact_only=None):
+        self.opts, self.why, self.holds, self.made, self.exact_only = opts, None, None, None, exact_only
 
     def take_made(self):
         """What the choice made that the factor takes, or None, handed over once: the ICC(0) trial's PC, set up on the
@@ -57,7 +58,7 @@ class WholeChoice:
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
-            if self.once:                       # ICC(0) is chosen for its iterations: applied once, no solve
+            if self.exact_only:                 # ICC(0) is chosen for its iterations on its own operator
                 return self._banded(A) if coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX else None
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
@@ -71,11 +72,11 @@ class WholeChoice:
         return self._exact(self._small(mat, A, coll, n, per_row, coords))
 
     def _exact(self, kind):
-        """``kind``, or where M is applied once (:attr:`once`) the exact factor in place of ICC(0), :attr:`why`
-        saying so."""
-        if not (self.once and kind == "icc"):
+        """``kind``, or where ICC(0) does not serve (:attr:`exact_only`) the exact factor in place of ICC(0),
+        :attr:`why` saying so."""
+        if not (self.exact_only and kind == "icc"):
             return kind
-        self.why = "applied once (KSPPREONLY), so exact in place of ICC(0), whose iterations it does not make"
+        self.why = f"{self.exact_only}, so exact in place of ICC(0), whose iterations it does not make"
         return "cholesky"
 
     def _small(self, mat, A, coll, n, per_row, coords):

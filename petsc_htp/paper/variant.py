@@ -57,7 +57,7 @@ class Paper:
         return False
 
     @staticmethod
-    def once(ksp_type, setup) -> bool:
+    def once(ksp, pc, setup) -> bool:
         """The network's M is the same under any KSP."""
         return False
 
