@@ -233,7 +233,7 @@ class HTPPC(Inspection):
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the deflated form corrects x0); settings a raised solve kept
         are given back first; a context set up nowhere yet sets itself up (a second KSPSetFromOptions makes a new
-        one, PETSc skipping PCSetUp), and anew where the variant's ``once`` says so (PREONLY, Pmat apart)."""
+        one, PETSc skipping PCSetUp), and anew where the variant's ``once`` says so (a PREONLY KSP)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
         if self.setup is None or self.variant.once(ksp, pc, self.setup):
             self._free()

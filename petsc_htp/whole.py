@@ -22,8 +22,8 @@ class WholeChoice:
     """The choice for one pattern: :meth:`kind`, then :attr:`why` (the reason -ksp_view prints, None where the size
     alone decides), :attr:`holds` (what new values may lose, or None) and :meth:`take_made` (what the choice made
     that the factor takes, once). ``exact_only``: why ICC(0) does not serve, else None: M applied once a solve (a
-    KSPPREONLY's PC: PCMG's coarse solve, PCFIELDSPLIT's splits) or made from a Pmat other than the Amat; the choice
-    then takes exact factors or the two-level method. ICC(0) is chosen for the iterations it saves on its own
+    KSPPREONLY's PC: PCMG's coarse solve, PCFIELDSPLIT's splits); the choice then takes exact factors or the
+    two-level method. ICC(0) is chosen for the iterations it saves on its own
     operator, and one application of it is no solve (PCMG's 9-point coarse level of 4 225 rows: 31 outer CG
     iterations, 8 with its Cholesky; PCFIELDSPLIT's shifted split of 66 049 rows: 2 945 FGMRES iterations, 204)."""
 
