@@ -232,12 +232,9 @@ class HTPPC(Inspection):
     @unwinding
     def preSolve(self, pc, ksp, b, x):
         """Before each KSPSolve: the variant's start (the deflated form corrects x0); settings a raised solve kept
-        are given back first; a context set up nowhere yet sets itself up (a second KSPSetFromOptions makes a new
-        one, PETSc skipping PCSetUp), and anew where the variant's ``once`` says so (a PREONLY KSP)."""
+        are given back first; the context made ready for this solve (:func:`_ready`)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
-        if self.setup is None or self.variant.once(ksp, pc, self.setup):
-            self._free()
-            self.setUp(pc)
+        _ready(self, pc, ksp)
         if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
@@ -270,6 +267,17 @@ class HTPPC(Inspection):
     def destroy(self, pc):
         """Free everything when PETSc destroys the PC."""
         self.reset(pc)
+
+
+def _ready(ctx, pc, ksp):
+    """Set the HTPPC context ``ctx`` up where it is set up nowhere yet (a second KSPSetFromOptions makes a new one,
+    PETSc skipping PCSetUp), then anew where its variant's ``once`` says that ``ksp`` calls for another choice (a
+    PREONLY KSP: PCSetUp ran before, so its first solve makes the choice twice)."""
+    if ctx.setup is None:
+        ctx.setUp(pc)
+    if ctx.variant.once(ksp, pc, ctx.setup):
+        ctx._free()
+        ctx.setUp(pc)
 
 
 def _same_array(a, b) -> bool:

@@ -12,6 +12,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 from scipy.sparse.csgraph import connected_components
 
+from .collective import Collective
 from .twolevel.nullspace import null_regions
 
 __all__ = ["attach", "attached", "read_csr", "aij_operator", "frame_mat", "frame_vec", "region_nullspace",
@@ -150,44 +151,43 @@ def _aij_type(mat) -> str:
 
 
 def _converted(mat) -> PETSc.Mat:
-    """``mat`` converted to a new AIJ (SBAIJ from its upper triangle: :func:`_symmetric`), or a ValueError that
+    """``mat`` converted to a new AIJ (MPISBAIJ from its upper triangle: :func:`_symmetric`), or a ValueError that
     names its type."""
     try:
         out = mat.convert(_aij_type(mat), out=PETSc.Mat())
     except PETSc.Error as exc:
         raise ValueError(f"HTPPC needs an assembled matrix that converts to AIJ; cannot convert a "
                          f"'{mat.getType()}' matrix to {_aij_type(mat)}") from exc
-    return _symmetric(out, mat) if mat.getType() in ("seqsbaij", "mpisbaij") else out
+    return _symmetric(out, mat) if mat.getType() == "mpisbaij" else out
 
 
 def _symmetric(converted, mat) -> PETSc.Mat:
-    """U + U^T - diag(U) for U the upper triangle of ``converted`` (freed), the AIJ copy of the SBAIJ ``mat``, whose
-    entries within a rank's diagonal block come from that block's own (sequential) conversion: PETSc's MPI conversion
-    reads the diagonal bs x bs blocks of a matrix set from its upper triangle wrongly (both halves; the sequential one
-    the lower halves), where SBAIJ's products read them rightly (3-D elasticity of 46 800 rows, 3x3 blocks, 2 ranks:
-    CG stopped at 3 000 iterations, the relative residual 1.6e-2, against 34 as AIJ)."""
+    """U + U^T for U the upper triangle of ``converted`` (freed), the AIJ copy of the MPISBAIJ ``mat``, its diagonal
+    halved, whose entries within a rank's diagonal block come from that block's own conversion: PETSc's MPI
+    conversion reads the diagonal bs x bs blocks of a matrix set from its upper triangle wrongly (both halves; the
+    block's own the lower halves; a SEQSBAIJ matrix of its own converts rightly), where SBAIJ's products read them
+    rightly (3-D elasticity of 46 800 rows, 3x3 blocks, 2 ranks: CG stopped at 3 000 iterations, the relative
+    residual 1.6e-2, against 34 as AIJ)."""
     lo, hi = mat.getOwnershipRange()
     shape = (hi - lo, mat.getSize()[1])
     indptr, indices, data = converted.getValuesCSR()
     converted.destroy()
-    rows = sp.csr_matrix((data, indices, indptr), shape=shape)
-    if mat.getType() == "mpisbaij":
-        block = mat.getDiagonalBlock().convert("seqaij", out=PETSc.Mat())
-        bi, bj, bv = block.getValuesCSR()
-        block.destroy()
-        row = np.repeat(np.arange(hi - lo), np.diff(indptr))
-        out = (indices < lo) | (indices >= hi)
-        inside = np.repeat(np.arange(hi - lo), np.diff(bi))         # one COO of both (an addition drops zeros)
-        rows = sp.coo_matrix((np.concatenate([data[out], bv]), (np.concatenate([row[out], inside]),
-                                                                 np.concatenate([indices[out], bj + lo]))),
-                             shape=shape).tocsr()
+    block = mat.getDiagonalBlock().convert("seqaij", out=PETSc.Mat())
+    bi, bj, bv = block.getValuesCSR()
+    block.destroy()
+    row = np.repeat(np.arange(hi - lo), np.diff(indptr))
+    out = (indices < lo) | (indices >= hi)
+    inside = np.repeat(np.arange(hi - lo), np.diff(bi))             # one COO of both (an addition drops zeros)
+    rows = sp.coo_matrix((np.concatenate([data[out], bv]), (np.concatenate([row[out], inside]),
+                                                             np.concatenate([indices[out], bj + lo]))),
+                         shape=shape).tocsr()
     upper = sp.triu(rows, k=lo, format="csr")
     upper.sort_indices()
+    upper.data[upper.indices == np.repeat(np.arange(hi - lo), np.diff(upper.indptr)) + lo] *= 0.5   # no new entry
     U = PETSc.Mat().createAIJ(mat.getSizes(), bsize=mat.getBlockSize(), comm=mat.getComm(),
                               csr=(upper.indptr.astype(PETSc.IntType), upper.indices.astype(PETSc.IntType), upper.data))
     full = U.transpose(PETSc.Mat())
     full.axpy(1.0, U, PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-    full.setDiagonal(U.getDiagonal())
     U.destroy()
     return full
 
@@ -196,13 +196,15 @@ def aij_operator(mat, previous=None) -> PETSc.Mat:
     """``mat`` itself when it is its communicator's AIJ, else an AIJ copy of it (BAIJ, SBAIJ: both triangles; MPIAIJ
     on one rank, whose products with the coarse space's SEQAIJ PETSc does not support) with its null spaces,
     near null space and known symmetry: PETSc's sparse products take AIJ only. ``previous``, an earlier copy, takes
-    the new values when its pattern is the same (the same Mat: the analysis is reused); otherwise a new copy comes
+    the new values when its pattern is the same on every rank (the same Mat: the analysis is reused; a pattern grown
+    within one rank had left the ranks on two Mats, and they hung); otherwise a new copy comes
     back and ``previous`` is left to the caller (an analysis may still hold it). (PETSc's own MAT_REUSE_MATRIX
     conversion from SBAIJ left a factor of the copy reading freed memory.)"""
     if mat.getType() == _aij_type(mat):
         return mat
     out = _converted(mat)
-    if previous is not None and all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ())):
+    same = previous is not None and all(np.array_equal(a, b) for a, b in zip(out.getRowIJ(), previous.getRowIJ()))
+    if previous is not None and not Collective(mat.getComm()).any(not same):     # on every rank, or on none
         out.copy(previous, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
         out.destroy()
         out = previous

@@ -52,8 +52,8 @@ def cut_rows(rows, block) -> np.ndarray:
     """Boolean (n,): this rank's ``rows`` (CSR, global columns) whose couplings to other ranks' rows (those not in
     the diagonal ``block``) weigh at least :data:`CUT_SHARE` of their |diagonal|, where they are at most
     :data:`CUT_ROWS` of the rows (else none). Such a row holds a strong coupling the rank's leaves cannot keep (a
-    random field of contrast 1e4 at 16 384 rows: CG took 24 iterations on one rank, 89 on two, 105 on three; now 32
-    and 25): as a leaf of its own its coarse column keeps the coupled pair's common mode."""
+    random field of contrast 1e4 at 16 384 rows: CG took 21 iterations on one rank, 85 on two, 101 on three; now 29
+    and 22, ``results/sweep-20261127b``): as a leaf of its own its coarse column keeps the coupled pair's common mode."""
     from .twolevel.csr import row_sums
 
     n = rows.shape[0]

@@ -127,15 +127,16 @@ class TwoLevel:
         return self.choice.kind(mat, A, coords)
 
     def once(self, ksp, pc, setup) -> bool:
-        """Whether the first solve by ``ksp`` that applies M once (a KSPPREONLY: PCMG's coarse solve, PCFIELDSPLIT's
-        splits) calls for a new analysis: ``setup`` is ICC(0), chosen for the iterations it saves; from then on the
-        choice takes exact factors or the two-level method (:class:`~petsc_htp.whole.WholeChoice`). (A Pmat apart
-        from the Amat keeps ICC(0): P = A with its diagonal x 1.05, 16 384 rows, took it 482 CG iterations in 237
-        ms, the two-level method 293 in 774.)"""
-        if self.exact_only is not None or ksp.getType() != "preonly":
-            return False
-        self.exact_only = "applied once (KSPPREONLY)"
-        return getattr(setup, "kind", None) in ("icc", "bjacobi", "asm")
+        """Whether a solve by ``ksp`` calls for a new analysis: one that applies M once (a KSPPREONLY: PCMG's coarse
+        solve, PCFIELDSPLIT's splits) where ``setup`` is ICC(0), chosen for the iterations it saves, or another after
+        a choice made for such a KSP (a KSPReset and a new type: ICC(0) may serve again); the choice takes exact
+        factors or the two-level method while the KSP is PREONLY (:attr:`exact_only`,
+        :class:`~petsc_htp.whole.WholeChoice`). (A Pmat apart from the Amat keeps ICC(0): P = A with its diagonal x
+        1.05, 16 384 rows, took it 482 CG iterations in about 240 ms, the two-level method 293 in 335-708.)"""
+        made = self.choice is not None and self.choice.exact_only is not None     # the choice in use took them
+        once = ksp.getType() == "preonly"
+        self.exact_only = "applied once (KSPPREONLY)" if once else None
+        return (not made and getattr(setup, "kind", None) in ("icc", "bjacobi", "asm")) if once else made
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,

@@ -58,7 +58,8 @@ class WholeChoice:
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
-            if self.exact_only:                 # ICC(0) is chosen for its iterations on its own operator
+            if self.exact_only:                 # ICC(0), also each rank's (bjacobi, asm), is chosen for its
+                # iterations; only one rank's band stays (a chain on several takes the two-level method)
                 return self._banded(A) if coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX else None
             kind = self._dominant(mat, A, coll)
             if kind is None and coords is None:
