@@ -69,3 +69,16 @@ def test_petsc_mat_distributed_over_two_ranks():
                             capture_output=True, text=True, timeout=120, env=env)
     assert result.returncode == 0, result.stderr
     assert result.stdout.splitlines() == ["rank ok 0", "rank ok 1"]
+
+
+def test_the_symmetry_probe_is_the_same_vector_on_any_split():
+    """validation.probe_values hashes each global index: any split of the rows gives the same probe, so a matrix near
+    the asymmetry threshold gets one answer on any number of ranks (PETSc's random vectors differ with the split);
+    its entries spread over [-0.5, 0.5) as uniform ones do, and the two salts differ."""
+    from petsc_htp.validation import probe_values
+
+    whole = probe_values(0, 100000, 1)
+    parts = np.concatenate([probe_values(a, b, 1) for a, b in ((0, 333), (333, 50001), (50001, 100000))])
+    assert np.array_equal(whole, parts)
+    assert abs(whole.mean()) < 0.01 and abs(whole.std() - 12 ** -0.5) < 0.01 and whole.min() >= -0.5 and whole.max() < 0.5
+    assert abs(np.corrcoef(whole, probe_values(0, 100000, 2))[0, 1]) < 0.02
