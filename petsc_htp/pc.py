@@ -258,8 +258,11 @@ class HTPPC(Inspection):
         self._retired = []
 
     def reset(self, pc):
-        """Drop the analysis, the factors and an AIJ copy of the operator (the network stays loaded)."""
+        """Drop the analysis, the factors, an AIJ copy of the operator and the variant's PREONLY choice (the network
+        stays loaded)."""
         self._free()
+        if self.variant is not None:
+            self.variant.exact_only = None
         if self._aij is not None:
             self._aij.destroy()
             self._aij = None

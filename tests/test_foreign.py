@@ -537,6 +537,10 @@ def test_the_deflated_start_solves_the_coarse_part_and_adds_no_null_component():
     x = mat.createVecRight()
     ksp.solve(frame_vec(bare_frame(K, b, ""), mat), x)
     assert abs(x.getArray().mean()) <= 1e-10 * np.sqrt(np.mean(x.getArray() ** 2))
+    x.setArray(5.0 + np.random.default_rng(4).random(K.shape[0]))     # a guess keeps its own null component
+    ksp.setInitialGuessNonzero(True)
+    ksp.solve(frame_vec(bare_frame(K, b, ""), mat), x)
+    assert ksp.getConvergedReason() > 0 and abs(x.getArray().mean() - 5.5) < 0.01, x.getArray().mean()
 
 
 def test_a_growing_time_step_makes_the_shifted_rows_trial_again():

@@ -174,9 +174,11 @@ class Forms:
         before = t.norm()
         self.ops.W.multTranspose(t, cs.g)
         _start(self, ksp, before)
-        self.ops.W.multAdd(cs.c, x, x)
-        if ksp.getOperators()[0].getNullSpace().handle:     # the start adds no null component (CG from zero keeps
-            ksp.getOperators()[0].getNullSpace().remove(x)  # none: a Neumann solution had kept an offset of 0.27)
+        self.ops.W.mult(cs.c, self.v)
+        null = ksp.getOperators()[0].getNullSpace()
+        if null.handle:                 # the start adds no null component (CG from zero keeps none: a Neumann
+            null.remove(self.v)         # solution had kept an offset of 0.27; a guess keeps its own)
+        x.axpy(1.0, self.v)
         ksp.setInitialGuessNonzero(True)
         self.started = True
         changed, divtol = {"guess": nonzero}, ksp.getTolerances()[2]
