@@ -24,7 +24,10 @@ from ..events import event
 # need a symmetric M (MINRES, CR, ...), and those whose right-preconditioned start went wrong (TFQMR, CGS and IBCGS
 # reported convergence at a true relative residual of 2.4e3).
 START_TOL = 0.1         # V-cycles: the start's W^T r0 is refined below this times the KSP's tolerance ...
-START_STEPS = 10        # ... in at most this many steps (two V-cycles each)
+START_STEPS = 10        # ... in at most this many steps (two V-cycles each) ...
+START_CUT = 0.5         # ... where the first left it below this times W^T b, and while each step halves it (with
+# coefficient jumps two V-cycles left it at 5.5 ||b|| and refining it cost 3 more CG iterations: 2-D DMDA, 262 144
+# rows on 2 ranks, 41 against 44)
 DEFLATED_KSPS = ("cg", "pipecg", "groppcg", "fcg", "pipefcg", "gcr", "gmres", "fgmres", "lgmres", "dgmres", "pgmres",
                  "bcgs", "qmrcgs", "bicg", "richardson", "chebyshev")
 
@@ -221,10 +224,11 @@ class Forms:
 
 def _start(forms, ksp, before):
     """c = E^-1 g for the start of ``forms`` (:class:`Forms`), where the coarse solve is V-cycles refined until
-    W^T r0 = g - E c is below :data:`START_TOL` times ``ksp``'s tolerance (``before`` the residual's norm) or stops
-    halving, at most :data:`START_STEPS` times: the deflated form takes W^T r0 = 0 (a smooth solution, A u = b for
-    u = 1 on a Laplacian of 250 000 rows, took 97 CG iterations after one start of two V-cycles, none after ten
-    refinements; a random b 27 either way)."""
+    W^T r0 = g - E c is below :data:`START_TOL` times ``ksp``'s tolerance (``before`` the residual's norm), where the
+    first solve left it below :data:`START_CUT` times ||g|| and while each step halves it, at most
+    :data:`START_STEPS` times: the deflated form takes W^T r0 = 0 (a smooth solution, A u = b for u = 1 on a
+    Laplacian of 250 000 rows, took 97 CG iterations after one start of two V-cycles, none after ten refinements; a
+    random b 27 either way)."""
     cs = forms.coarse
     forms._coarse(cs.g, cs.c)
     if cs.direct:
@@ -233,13 +237,13 @@ def _start(forms, ksp, before):
         forms._res, forms._dc = cs.g.duplicate(), cs.g.duplicate()
     res, dc = forms._res, forms._dc
     rtol, atol = ksp.getTolerances()[:2]
-    target, last = START_TOL * max(rtol * before, atol), np.inf
+    target, last = START_TOL * max(rtol * before, atol), START_CUT * cs.g.norm()
     for _ in range(START_STEPS):
         cs.E.mult(cs.c, res)
         res.aypx(-1.0, cs.g)                                   # W^T r0
         now = res.norm()
-        if now <= target or now > 0.5 * last:
+        if now <= target or now > last:
             return
-        last = now
+        last = 0.5 * now
         forms._coarse(res, dc)
         cs.c.axpy(1.0, dc)
