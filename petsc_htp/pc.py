@@ -164,7 +164,7 @@ class HTPPC(Inspection):
         coll = Collective(P.getComm())
         moved = not changed and self.variant.moved(self.analysis, A)     # values that call for new leaves
         if coll.any(changed or moved):
-            check_symmetry(P)
+            check_symmetry(P, A)
             if not coll.any(changed):
                 self._free()
             variant = self.variant

@@ -93,32 +93,55 @@ def check_attached(mat, coords, density) -> None:
         raise MatrixError(f"coordinates of {-widths[1]} and {widths[0]} dimensions are attached on different ranks")
 
 
-def check_symmetry(mat) -> None:
-    """Raise :class:`MatrixError` (every rank) when a random probe shows ``mat`` is not symmetric; nothing when
-    the matrix is known to be symmetric (MAT_SYMMETRIC). Collective."""
-    from petsc4py import PETSc
-
+def check_symmetry(mat, rows=None) -> None:
+    """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
+    naming Dirichlet rows' couplings where the asymmetry is theirs alone (``rows``: this rank's CSR rows); nothing
+    when the matrix is known to be symmetric (MAT_SYMMETRIC). Collective."""
     known, symmetric = mat.isSymmetricKnown()
     if known and symmetric:
         return
+    gap, scale = _asymmetry(mat)
+    if gap <= ASYMMETRY * scale:
+        return
+    lone = None
+    if rows is not None:
+        from .twolevel.aggregation import decoupled_rows
+
+        lone = decoupled_rows(rows, mat.getOwnershipRange()[0])
+    count = Collective(mat.getComm()).sum(0 if lone is None else int(np.count_nonzero(lone)))
+    if count and _asymmetry(mat, lone)[0] <= ASYMMETRY * scale:
+        raise MatrixError(f"the matrix is not symmetric only because {count} row(s) holding just their diagonal "
+                          "(Dirichlet rows) keep their couplings in the other rows, as MatZeroRows leaves them; HTPPC "
+                          "needs an SPD matrix: zero those columns too (MatZeroRowsColumns, which moves the Dirichlet "
+                          "values into b)")
+    raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
+                      "|x| |y| |A|); HTPPC needs an SPD matrix (if A is symmetric to rounding, say so with "
+                      "MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE))")
+
+
+def _asymmetry(mat, lone=None) -> tuple:
+    """(|x^T A y - y^T A x|, |x| |y| |A|_inf) for the two probes (collective); with ``lone`` (this rank's rows, boolean)
+    of A with those rows' columns dropped but their diagonal entries: A (1 - d) v + d a_ii v."""
+    from petsc4py import PETSc
+
     x, y = mat.createVecs()
-    ax, ay = mat.createVecs()
+    ax, ay, tmp = mat.createVecs() + (mat.createVecRight(),)
     start, end = x.getOwnershipRange()
+    keep = None if lone is None else np.where(lone, 0.0, 1.0)
+    diag = None if lone is None else np.where(lone, mat.getDiagonal().array_r, 0.0)
     try:
-        x.setArray(probe_values(start, end, 1))
-        y.setArray(probe_values(start, end, 2))
-        mat.mult(x, ax)
-        mat.mult(y, ay)
-        gap = abs(x.dot(ay) - y.dot(ax))
-        scale = x.norm() * y.norm() * mat.norm(PETSc.NormType.INFINITY)
+        for salt, v, av in ((1, x, ax), (2, y, ay)):
+            v.setArray(probe_values(start, end, salt))
+            if keep is None:
+                mat.mult(v, av)
+            else:
+                tmp.setArray(keep * v.array_r)
+                mat.mult(tmp, av)
+                av.array[:] += diag * v.array_r
+        return abs(x.dot(ay) - y.dot(ax)), x.norm() * y.norm() * mat.norm(PETSc.NormType.INFINITY)
     finally:
-        for obj in (x, y, ax, ay):
+        for obj in (x, y, ax, ay, tmp):
             obj.destroy()
-    if gap > ASYMMETRY * scale:
-        raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
-                          "|x| |y| |A|); HTPPC needs an SPD matrix (if A is symmetric to rounding, say so with "
-                          "MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE); Dirichlet rows set by MatZeroRows keep their "
-                          "columns, MatZeroRowsColumns keeps A symmetric)")
 
 
 def probe_values(start, end, salt) -> np.ndarray:

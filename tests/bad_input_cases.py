@@ -154,6 +154,15 @@ def case_nonsymmetric():
     return outcome(dist(sp.csr_matrix(A), symmetric=False), BASE.b)[0]
 
 
+def case_dirichlet_columns():
+    """Dirichlet rows as MatZeroRows leaves them: rows 0-31 hold just their diagonal, the other rows keep their
+    couplings to them (not symmetric, as PETSc's DMDA tutorials assemble it): the error names those rows."""
+    A = BASE.A.tolil()
+    for i in range(32):
+        A.rows[i], A.data[i] = [i], [float(BASE.A[i, i])]
+    return outcome(dist(sp.csr_matrix(A), symmetric=False), BASE.b)[0]
+
+
 def case_indefinite():
     """Symmetric with a positive diagonal but indefinite: every coupling +3 |a_ij| (a checkerboard vector
     has a negative Rayleigh quotient)."""
