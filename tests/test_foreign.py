@@ -517,6 +517,8 @@ def test_a_preonly_ksp_gets_exact_factors_or_the_two_level_method_not_icc():
             assert "applied once (KSPPREONLY)" in lines(ksp)
         ksp.solve(*ksp.getOperators()[0].createVecs())                  # later solves keep it (no third analysis)
         assert ctx.analysis_count == 2
+        for name in ("ksp_rtol", "ksp_max_it", "ksp_norm_type"):          # options a PREONLY KSP does not read
+            PETSc.Options(ksp.getOptionsPrefix()).delValue(name)
 
 
 def test_the_deflated_start_solves_the_coarse_part_and_adds_no_null_component():
