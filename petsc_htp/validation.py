@@ -127,8 +127,10 @@ def _asymmetry(mat, lone=None) -> tuple:
     x, y = mat.createVecs()
     ax, ay, tmp = mat.createVecs() + (mat.createVecRight(),)
     start, end = x.getOwnershipRange()
-    keep = None if lone is None else np.where(lone, 0.0, 1.0)
-    diag = None if lone is None else np.where(lone, mat.getDiagonal().array_r, 0.0)
+    keep = diag = None
+    if lone is not None:
+        mat.getDiagonal(tmp)
+        keep, diag = np.where(lone, 0.0, 1.0), np.where(lone, tmp.array_r, 0.0)
     try:
         for salt, v, av in ((1, x, ax), (2, y, ay)):
             v.setArray(probe_values(start, end, salt))

@@ -136,7 +136,9 @@ class TwoLevel:
         made = self.choice is not None and self.choice.exact_only is not None     # the choice in use took them
         once = ksp.getType() == "preonly"
         self.exact_only = "applied once (KSPPREONLY)" if once else None
-        return (not made and getattr(setup, "kind", None) in ("icc", "bjacobi", "asm")) if once else made
+        from .twolevel.direct import INCOMPLETE
+
+        return (not made and getattr(setup, "kind", None) in INCOMPLETE) if once else made
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,

@@ -180,10 +180,34 @@ class CoarseSolve:
         """c = E^-1 g, refined :attr:`refine` times."""
         self.pc.apply(g, c)
         for _ in range(self.refine):
-            self.E.mult(c, self._res)
-            self._res.aypx(-1.0, g)                     # g - E c
-            self.pc.apply(self._res, self._dc)
-            c.axpy(1.0, self._dc)
+            self._residual(g, c)
+            self._correct(c)
+
+    def solve_to(self, g, c, target, cut, steps):
+        """c = E^-1 g (:meth:`apply`), then where the solve is not a factor refined until ||g - E c|| <= ``target``,
+        where the first left it below ``cut`` times ||g|| and while each step halves it, at most ``steps`` times
+        (the deflated form's start: :meth:`.forms.Forms.presolve`)."""
+        self.apply(g, c)
+        if self.direct:
+            return
+        last = cut * g.norm()
+        for _ in range(steps):
+            now = self._residual(g, c)
+            if now <= target or now > last:
+                return
+            last = 0.5 * now
+            self._correct(c)
+
+    def _residual(self, g, c) -> float:
+        """g - E c into the work vector; its norm."""
+        self.E.mult(c, self._res)
+        self._res.aypx(-1.0, g)
+        return self._res.norm()
+
+    def _correct(self, c):
+        """c += the solve of the work vector's residual."""
+        self.pc.apply(self._res, self._dc)
+        c.axpy(1.0, self._dc)
 
     def describe(self) -> str:
         """The coarse solver, and why it was chosen."""

@@ -42,6 +42,7 @@ OVERLAP = 4             # 'asm': layers each rank's block grows by (rotated anis
 GROWN = {"pc_type": "asm", "pc_asm_type": "basic", "pc_asm_overlap": str(OVERLAP), "sub_pc_type": "icc",
          "sub_pc_factor_shift_type": "positive_definite"}
 BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
+INCOMPLETE = ("icc", *BLOCKED)                     # kinds chosen for the iterations they save
 
 
 def factor_options(kind: str, ranks: int) -> dict:

@@ -23,7 +23,9 @@ from ..events import event
 # matrix, each to rtol 1e-8 in the true residual. Any other takes the balanced form, a fixed SPD operator: those that
 # need a symmetric M (MINRES, CR, ...), and those whose right-preconditioned start went wrong (TFQMR, CGS and IBCGS
 # reported convergence at a true relative residual of 2.4e3).
-START_TOL = 0.1         # V-cycles: the start's W^T r0 is refined below this times the KSP's tolerance ...
+START_TOL = 0.1         # V-cycles: the start's W^T r0 is refined below this times the KSP's tolerance (the deflated
+# form takes W^T r0 = 0: a smooth solution, A u = b for u = 1 on a Laplacian of 250 000 rows, took 97 CG iterations
+# after one start of two V-cycles, none after ten refinements; a random b 27 either way) ...
 START_STEPS = 10        # ... in at most this many steps (two V-cycles each) ...
 START_CUT = 0.5         # ... where the first left it below this times W^T b, and while each step halves it (with
 # coefficient jumps two V-cycles left it at 5.5 ||b|| and refining it cost 3 more CG iterations: 2-D DMDA, 262 144
@@ -41,7 +43,6 @@ class Forms:
         self.auto, self.forced = "deflated" if self._deflatable() else "balanced", None
         self.started = False          # inside a KSPSolve whose presolve made the deflated start
         self.v, self.t = mat.createVecLeft(), mat.createVecLeft()
-        self._res = self._dc = None                           # the start's coarse vectors (:func:`_start`)
         self._leaf_ev, self._coarse_ev = event("HTPLeafSolve"), event("HTPCoarseSolve")
 
     def form(self, ksp_type=None) -> str:
@@ -176,7 +177,12 @@ class Forms:
             nsp.remove(t)
         before = t.norm()
         self.ops.W.multTranspose(t, cs.g)
-        _start(self, ksp, before)
+        rtol, atol = ksp.getTolerances()[:2]
+        self._coarse_ev.begin()         # c = E^-1 g, V-cycles refined (:data:`START_TOL`)
+        try:
+            cs.solve_to(cs.g, cs.c, START_TOL * max(rtol * before, atol), START_CUT, START_STEPS)
+        finally:
+            self._coarse_ev.end()
         self.ops.W.mult(cs.c, self.v)
         null = ksp.getOperators()[0].getNullSpace()
         if null.handle:                 # the start adds no null component (CG from zero keeps none: a Neumann
@@ -216,34 +222,7 @@ class Forms:
 
     def destroy(self):
         """Free the work vectors."""
-        for obj in (self.v, self.t, self._res, self._dc):
-            if obj is not None:
-                obj.destroy()
-        self.v = self.t = self._res = self._dc = None
+        for obj in (self.v, self.t):
+            obj.destroy()
+        self.v = self.t = None
 
-
-def _start(forms, ksp, before):
-    """c = E^-1 g for the start of ``forms`` (:class:`Forms`), where the coarse solve is V-cycles refined until
-    W^T r0 = g - E c is below :data:`START_TOL` times ``ksp``'s tolerance (``before`` the residual's norm), where the
-    first solve left it below :data:`START_CUT` times ||g|| and while each step halves it, at most
-    :data:`START_STEPS` times: the deflated form takes W^T r0 = 0 (a smooth solution, A u = b for u = 1 on a
-    Laplacian of 250 000 rows, took 97 CG iterations after one start of two V-cycles, none after ten refinements; a
-    random b 27 either way)."""
-    cs = forms.coarse
-    forms._coarse(cs.g, cs.c)
-    if cs.direct:
-        return
-    if forms._res is None:
-        forms._res, forms._dc = cs.g.duplicate(), cs.g.duplicate()
-    res, dc = forms._res, forms._dc
-    rtol, atol = ksp.getTolerances()[:2]
-    target, last = START_TOL * max(rtol * before, atol), START_CUT * cs.g.norm()
-    for _ in range(START_STEPS):
-        cs.E.mult(cs.c, res)
-        res.aypx(-1.0, cs.g)                                   # W^T r0
-        now = res.norm()
-        if now <= target or now > last:
-            return
-        last = 0.5 * now
-        forms._coarse(res, dc)
-        cs.c.axpy(1.0, dc)
