@@ -28,6 +28,7 @@ operator's state changed, so ``-ksp_reuse_preconditioner`` skips both. ``-log_vi
 """
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -36,10 +37,11 @@ from petsc4py import PETSc
 from .checks import check_message
 from .collective import Collective
 from .events import event
+from .keptcolumns import KeptColumns
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .ranksplit import crossing
-from .validation import check_attached, check_matrix, check_size, check_symmetry
+from .validation import check_attached, check_matrix, check_size
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows, post_solve
 from .threads import set_threads
 from .variants import variant_class
@@ -97,6 +99,7 @@ class HTPPC(Inspection):
         self.n = self.inv_diag = self._pattern = self._values = self._coords = self._changed = self.cut = None
         self._started, self._csr, self.threads_note, self._help_shown = 0.0, (None, None, None), "", False
         self._aij, self._retired = None, []     # an AIJ copy of a BAIJ/SBAIJ operator; earlier ones still in use
+        self.columns = KeptColumns()            # A' where Dirichlet rows keep their columns (MatZeroRows)
         self._ev_setup, self._ev_apply = event("HTPSetup"), event("HTPApply")
 
     def setFromOptions(self, pc):
@@ -122,10 +125,9 @@ class HTPPC(Inspection):
             check_size(P)
             check_attached(P, coords, density)
             P = self._operator(P)
-            with local_rows(P, copy=opts.variant == "paper") as A:     # this rank's rows (the whole matrix on one)
-                check_matrix(P, A, empty_ok=opts.variant == "twolevel")  # a named error on every rank, or none
+            with _checked_rows(self.columns, P, opts.variant) as (P, A):    # this rank's rows (all on one rank)
                 self._setup(P, A, coords, density, opts)
-            self._check(pc, opts)
+            _check(self, pc, opts)
             self._values = values
         finally:
             self._ev_setup.end()
@@ -164,7 +166,6 @@ class HTPPC(Inspection):
         coll = Collective(P.getComm())
         moved = not changed and self.variant.moved(self.analysis, A)     # values that call for new leaves
         if coll.any(changed or moved):
-            check_symmetry(P, A)
             if not coll.any(changed):
                 self._free()
             variant = self.variant
@@ -200,16 +201,8 @@ class HTPPC(Inspection):
         if opts.fallback == "jacobi":
             self.inv_diag = 1.0 / A.diagonal(k=P.getOwnershipRange()[0])
 
-    def _check(self, pc, opts):
-        """The setup's own checks; switch to Jacobi when asked to."""
-        reason = self.fallback_reason = self.setup.check(opts.probes)
-        self.fallback_active = bool(reason) and opts.fallback == "jacobi"
-        if reason:
-            PETSc.Sys.Print(check_message(pc.getOptionsPrefix() or "", reason, self.fallback_active),
-                            comm=pc.getComm())
-
-    def apply(self, pc, x, y):
-        """y = M x (or D^-1 x under an active Jacobi fallback)."""
+    def apply(self, pc, x, y, transpose=False):
+        """y = M x (or D^-1 x under an active Jacobi fallback); ``transpose``: M^T x (:mod:`.keptcolumns`)."""
         if self.setup is None:          # a second KSPSetFromOptions's new context, which PCSetUp skips (see preSolve)
             self.setUp(pc)
         self._ev_apply.begin()
@@ -221,13 +214,13 @@ class HTPPC(Inspection):
             if self.fallback_active:
                 y.array_w[...] = self.inv_diag * x.array_r
             else:
-                self.variant.apply(self.setup, x, y)
+                self.columns.apply(lambda a, b: self.variant.apply(self.setup, a, b), x, y, transpose)
         finally:
             self._ev_apply.end()
 
     def applyTranspose(self, pc, x, y):
-        """M is symmetric: same as :meth:`apply`."""
-        self.apply(pc, x, y)
+        """M^T x: M, symmetric but where Dirichlet rows keep their columns."""
+        self.apply(pc, x, y, transpose=True)
 
     @unwinding
     def preSolve(self, pc, ksp, b, x):
@@ -235,18 +228,20 @@ class HTPPC(Inspection):
         are given back first; the context made ready for this solve (:func:`_ready`)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
         _ready(self, pc, ksp)
+        self._changed = self.columns.start(ksp, b, x)         # x0 = D^-1 b on such rows: before the variant's
         if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
                      or amat.handle != pmat.handle)      # M made from a Pmat other than the solved Amat
-            self._changed = self.variant.presolve(self.setup, ksp, b, x, stale)
+            started = self.variant.presolve(self.setup, ksp, b, x, stale) or {}
+            self._changed = {**started, **(self._changed or {})}       # the flag as the caller had it
 
     def postSolve(self, pc, ksp, b, x):
         """After each KSPSolve: tell the variant its iterations; give the KSP back the settings its start changed
         (initial-guess flag, divergence tolerance)."""
         if self.setup is not None and not self.fallback_active and self._started is not None:
             self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
-        self._changed = give_back(ksp, self._changed)
+        self._changed, self.columns.started = give_back(ksp, self._changed), False
 
     def _free(self):
         """Free the analysis and its setups (PETSc objects included)."""
@@ -261,6 +256,7 @@ class HTPPC(Inspection):
         """Drop the analysis, the factors, an AIJ copy of the operator and the variant's PREONLY choice (the network
         stays loaded)."""
         self._free()
+        self.columns.free()
         if self.variant is not None:
             self.variant.exact_only = None
         if self._aij is not None:
@@ -270,6 +266,29 @@ class HTPPC(Inspection):
     def destroy(self, pc):
         """Free everything when PETSc destroys the PC."""
         self.reset(pc)
+
+
+@contextlib.contextmanager
+def _checked_rows(columns, P, variant):
+    """This rank's rows of the AIJ operator ``P`` (the whole matrix on one rank; a copy for the paper's ``variant``)
+    checked (:func:`.validation.check_matrix`: a named error on every rank, or none), then (operator, its rows) of
+    what HTPPC preconditions: ``P``, or ``columns``' copy where Dirichlet rows keep their columns."""
+    with local_rows(P, copy=variant == "paper") as A:
+        check_matrix(P, A, empty_ok=variant == "twolevel")
+        Q = columns.operator(P, A)
+        if Q is P:
+            yield P, A
+            return
+    with local_rows(Q, copy=variant == "paper") as A:
+        yield Q, A
+
+
+def _check(ctx, pc, opts):
+    """The setup's own checks on the HTPPC context ``ctx``; switch to Jacobi when asked to."""
+    reason = ctx.fallback_reason = ctx.setup.check(opts.probes)
+    ctx.fallback_active = bool(reason) and opts.fallback == "jacobi"
+    if reason:
+        PETSc.Sys.Print(check_message(pc.getOptionsPrefix() or "", reason, ctx.fallback_active), comm=pc.getComm())
 
 
 def _ready(ctx, pc, ksp):

@@ -24,7 +24,7 @@ def lines(ctx) -> list:
         out.append(f"  {ctx.variant.note}")
     if ctx.setup is None:
         return out
-    out += ["  " + line for line in ctx.setup.describe() + describe_split(ctx.cut)]
+    out += ["  " + line for line in ctx.setup.describe() + ctx.columns.describe() + describe_split(ctx.cut)]
     which = "BLAS, OpenMP" + (" and torch" if "torch" in sys.modules else "")
     threads = f"; {which} threads: {ctx.opts.threads}" + (f" ({ctx.threads_note})" if ctx.threads_note else "")
     out.append(f"  setups: {ctx.analysis_count} analyses (pattern), {ctx.numeric_count} numeric (values)" + threads)

@@ -13,7 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-CUT_SHARE = 0.5     # a row whose couplings to other ranks weigh this share of its diagonal or more is a leaf of its own
+CUT_SHARE = 0.5     # a row whose couplings to other ranks weigh this share of its diagonal or more, and more than this
+# share of all its couplings, is a leaf of its own (PETSc's ksp ex3, a Q1 stencil with positive corner couplings: every
+# row's couplings weigh twice its diagonal, and under the first test alone the rows beside the cut were 1 202 leaves
+# of one row on 2 ranks at 361 201 rows, whose coarse LU in the leaves' METIS order then filled 5x: 3.3 s)
 CUT_ROWS = 0.05     # ... where at most this share of a rank's rows are such (a split that cuts many couplings, rows
 # numbered at random: 82 % of the foreign study's P1 tetrahedra on 2 ranks, a coarse operator of 52 864 rows)
 CUT_ADVICE = 0.2    # share of cut couplings above which -ksp_view advises a better split (a 3-D block of 25^3 rows
@@ -50,7 +53,8 @@ def describe(cut) -> list:
 
 def cut_rows(rows, block) -> np.ndarray:
     """Boolean (n,): this rank's ``rows`` (CSR, global columns) whose couplings to other ranks' rows (those not in
-    the diagonal ``block``) weigh at least :data:`CUT_SHARE` of their |diagonal|, where they are at most
+    the diagonal ``block``) weigh at least :data:`CUT_SHARE` of their |diagonal| and more than that share of all their
+    couplings, where they are at most
     :data:`CUT_ROWS` of the rows (else none). Such a row holds a strong coupling the rank's leaves cannot keep (a
     random field of contrast 1e4 at 16 384 rows: CG took 21 iterations on one rank, 85 on two, 101 on three; now 29
     and 22, ``results/sweep-20261127b``): as a leaf of its own its coarse column keeps the coupled pair's common mode."""
@@ -59,6 +63,7 @@ def cut_rows(rows, block) -> np.ndarray:
     n = rows.shape[0]
     if n == 0 or rows.shape[1] == n:
         return np.zeros(n, dtype=bool)
-    cross = row_sums(rows.indptr, np.abs(rows.data)) - row_sums(block.indptr, np.abs(block.data))
-    cut = cross >= CUT_SHARE * np.abs(block.diagonal())
+    total, diag = row_sums(rows.indptr, np.abs(rows.data)), np.abs(block.diagonal())
+    cross = total - row_sums(block.indptr, np.abs(block.data))
+    cut = (cross >= CUT_SHARE * diag) & (cross > CUT_SHARE * (total - diag))
     return cut if np.count_nonzero(cut) <= CUT_ROWS * n else np.zeros(n, dtype=bool)

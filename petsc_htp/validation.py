@@ -6,7 +6,8 @@ no rank is left waiting in a collective that another one skipped. Checked: a non
 matrix, a rank without rows, NaN or Inf entries, empty rows, missing or zero diagonal entries, negative
 diagonal entries (HTPPC needs an SPD matrix), attached null space vectors split unlike the rows, coordinates attached
 on some ranks only (:func:`check_attached`), and, once per nonzero pattern unless the matrix says it is symmetric,
-symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y|.
+symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y| (where Dirichlet rows whose columns the other
+rows keep are the only asymmetry, :func:`check_symmetry` returns them: :mod:`petsc_htp.keptcolumns` takes them).
 """
 from __future__ import annotations
 
@@ -93,27 +94,25 @@ def check_attached(mat, coords, density) -> None:
         raise MatrixError(f"coordinates of {-widths[1]} and {widths[0]} dimensions are attached on different ranks")
 
 
-def check_symmetry(mat, rows=None) -> None:
+def check_symmetry(mat, rows=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
-    naming Dirichlet rows' couplings where the asymmetry is theirs alone (``rows``: this rank's CSR rows); nothing
-    when the matrix is known to be symmetric (MAT_SYMMETRIC). Collective."""
+    but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows; ``rows``:
+    this rank's CSR rows), return this rank's such rows (boolean: :mod:`petsc_htp.keptcolumns` drops their columns);
+    None when symmetric or known to be (MAT_SYMMETRIC). Collective."""
     known, symmetric = mat.isSymmetricKnown()
     if known and symmetric:
-        return
+        return None
     gap, scale = _asymmetry(mat)
     if gap <= ASYMMETRY * scale:
-        return
-    lone = None
+        return None
+    dirichlet = None
     if rows is not None:
         from .twolevel.aggregation import decoupled_rows
 
-        lone = decoupled_rows(rows, mat.getOwnershipRange()[0])
-    count = Collective(mat.getComm()).sum(0 if lone is None else int(np.count_nonzero(lone)))
-    if count and _asymmetry(mat, lone)[0] <= ASYMMETRY * scale:
-        raise MatrixError(f"the matrix is not symmetric only because {count} row(s) holding just their diagonal "
-                          "(Dirichlet rows) keep their couplings in the other rows, as MatZeroRows leaves them; HTPPC "
-                          "needs an SPD matrix: zero those columns too (MatZeroRowsColumns, which moves the Dirichlet "
-                          "values into b)")
+        dirichlet = decoupled_rows(rows, mat.getOwnershipRange()[0])
+    count = Collective(mat.getComm()).sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
+    if count and _asymmetry(mat, dirichlet)[0] <= ASYMMETRY * scale:
+        return dirichlet
     raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
                       "|x| |y| |A|); HTPPC needs an SPD matrix (if A is symmetric to rounding, say so with "
                       "MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE))")

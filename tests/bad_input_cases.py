@@ -156,7 +156,7 @@ def case_nonsymmetric():
 
 def case_dirichlet_columns():
     """Dirichlet rows as MatZeroRows leaves them: rows 0-31 hold just their diagonal, the other rows keep their
-    couplings to them (not symmetric, as PETSc's DMDA tutorials assemble it): the error names those rows."""
+    couplings to them (not symmetric, as PETSc's DMDA tutorials assemble it): preconditioned without those columns."""
     A = BASE.A.tolil()
     for i in range(32):
         A.rows[i], A.data[i] = [i], [float(BASE.A[i, i])]

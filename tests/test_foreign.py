@@ -332,8 +332,10 @@ def _on_two_ranks(A, path, b=None):
 def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own(tmp_path):
     """A random field of contrast 1e4 (a fifth of the couplings strong): a strong coupling that joins two ranks
     cannot lie inside a leaf, and the pair's common mode left the coarse space (CG: 21 iterations on one rank, 85 on
-    two, now 29); rows whose couplings to the other rank weigh half their diagonal are leaves of one row each, so the mode
-    lies in their coarse columns. A split that cuts many such rows (more than ranksplit.CUT_ROWS) makes none."""
+    two, now 29); rows whose couplings to the other rank weigh half their diagonal, and more than half of all their
+    couplings, are leaves of one row each, so the mode lies in their coarse columns. A split that cuts many such rows
+    (more than ranksplit.CUT_ROWS) makes none, nor does a Q1 stencil whose couplings weigh twice its diagonal
+    (PETSc's ksp ex3: the rows beside the cut had been leaves of one row)."""
     from petsc_htp.ranksplit import CUT_ROWS, cut_rows
 
     side, rng = 128, np.random.default_rng(2)
@@ -349,6 +351,9 @@ def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own(tmp_path)
     cut = cut_rows(A[:half], A[:half, :half].tocsr())
     assert 0 < np.count_nonzero(cut) <= CUT_ROWS * half
     assert not cut_rows(A[:half], sp.csr_matrix(A[:half, :half].diagonal() * sp.identity(half))).any()   # all cut
+    J, I = sp.diags([1.0, 1.0], [-1, 1], (side, side)), sp.identity(side)
+    Q1 = (8 * sp.kron(I, I) - 3 * (sp.kron(I, J) + sp.kron(J, I)) + sp.kron(J, J)).tocsr()   # ex3's signs: corners +1
+    assert not cut_rows(Q1[:half], Q1[:half, :half].tocsr()).any()
     b = np.random.default_rng(3).standard_normal(side * side)
     reason, its, relres, _, _ = solve(A, b)
     proc = _on_two_ranks(A, tmp_path / "field.petsc", b)

@@ -166,8 +166,9 @@ class Forms:
         if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:
             return None
         nonzero, t, cs = ksp.getInitialGuessNonzero(), self.t, self.coarse
-        if nonzero:
-            self.mat.mult(x, t)
+        amat = ksp.getOperators()[0]    # not stale: the matrix M was made from, or A without the Dirichlet rows'
+        if nonzero:                     # columns (:mod:`petsc_htp.keptcolumns`), whose x0 there is then exact
+            amat.mult(x, t)
             t.aypx(-1.0, b)
         else:
             b.copy(t)
@@ -194,7 +195,7 @@ class Forms:
         if ksp.getNormType() == PETSc.KSP.NormType.UNPRECONDITIONED and divtol > 0 and before > 0:
             self.ops.W.mult(cs.c, self.v)
             self.v.scale(-1.0)
-            self.mat.multAdd(self.v, t, t)                     # r0 = r - A W c
+            amat.multAdd(self.v, t, t)                         # r0 = r - A W c
             grown = t.norm() / before
             if grown > 1.0:
                 changed["divtol"] = divtol

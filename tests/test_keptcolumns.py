@@ -1,0 +1,43 @@
+"""Dirichlet rows whose couplings the other rows keep (PETSc's MatZeroRows, its DMDA tutorials): HTPPC preconditions
+the operator without those columns and starts the solve on the known values there (real mpiexec)."""
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+CASE = Path(__file__).resolve().parent / "keptcolumns_case.py"
+MPIEXEC = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:{__import__('os').environ.get('PATH', '')}")
+pytestmark = pytest.mark.mpi
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
+    """On 1 and 2 ranks, under CG, GMRES, BiCG and PREONLY, by the whole-matrix factor and by the two-level method,
+    the matrix MatZeroRows left (not symmetric) takes the iterations of the one MatZeroRowsColumns made and reaches
+    its tolerance on the true residual, its error as small; M outside a KSPSolve is A^-1 with the factor (and its
+    transpose A^-T), the two-level M^T is M's adjoint; -ksp_view says what was done; new values keep the analysis."""
+    out = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(CASE)], capture_output=True, text=True,
+                         timeout=600)
+    text = out.stdout + out.stderr
+    assert out.returncode == 0, text
+    assert "WARNING! There are options you set that were not used" not in text, text
+    solves = {m[0]: (int(m[1]), int(m[2]), float(m[3]), float(m[4])) for m in
+              re.findall(r"^solve (\S+) \S+ its (\d+) reason (-?\d+) relres (\S+) error (\S+)$", text, re.M)}
+    assert len(solves) == 17, text
+    for name, (its, reason, relres, error) in solves.items():
+        assert reason > 0, name
+        assert relres <= 1e-8 and error <= 1e-7, (name, relres, error)
+        if name.startswith("rows_"):
+            twin = solves["rowscols_" + name[5:]]
+            assert its == twin[0], (name, its, twin)
+            assert error <= 2 * twin[3] + 1e-13, (name, error, twin)
+    assert solves["rows_direct_cg"][0] == 1 and 10 <= solves["rows_twolevel_cg"][0] <= 30, solves
+    apply, transpose = map(float, re.search(r"^apply (\S+) transpose (\S+)$", text, re.M).groups())
+    assert apply <= 1e-12 and transpose <= 1e-12, text
+    assert float(re.search(r"^adjoint (\S+)$", text, re.M).group(1)) <= 1e-12, text
+    assert "188 Dirichlet row(s) hold just their diagonal while the other rows keep their couplings (MatZeroRows)" in text
+    again = re.search(r"^again its (\d+) reason (\d+) error (\S+) analyses (\d+) numeric (\d+)$", text, re.M)
+    assert again and float(again.group(3)) <= 1e-7 and again.group(4, 5) == ("1", "2"), text
