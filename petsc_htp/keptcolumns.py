@@ -3,10 +3,15 @@ ex45, TS ex15): A = [A_II A_ID; 0 D] is not symmetric, yet its solution on those
 
 HTPPC preconditions A' = [A_II 0; 0 D], a copy of A with those columns dropped (SPD), as M':
 
-- a KSPSolve starts on x_D = D^-1 b_D (:meth:`KeptColumns.start`): then every residual and Krylov vector vanishes on
-  those rows, where A acts as A' does, and M' (exact on those rows) is what CG or GMRES needs;
-- anywhere else (PREONLY, PCApply, a transposed product) M = (I - M' E) M' with E = A - A', or its transpose: A^-1
-  where M' is A'^-1, as A = A' (I + A'^-1 E) and (A'^-1 E)^2 = 0.
+- a KSPSolve of :data:`STARTED_KSPS` on the operator M was made from starts on x_D = D^-1 b_D
+  (:meth:`KeptColumns.start`): then every residual and Krylov vector vanishes on those rows, where A acts as A'
+  does, and M' (exact on those rows) is what CG or GMRES needs;
+- anywhere else (PREONLY, PCApply, a transposed product, KSPs whose right preconditioning or normal equations mishandle
+  a start: CGS, TFQMR, TCQMR, IBCGS, CGNE) M = (I - M' E) M' with E = A - A', or its transpose: A^-1 where M' is A'^-1,
+  as A = A' (I + A'^-1 E) and (A'^-1 E)^2 = 0.
+
+A transposed solve (KSPSolveTranspose) is started as a forward one, which A^T does not fit: under the deflated form
+CG stops with DIVERGED_INDEFINITE_PC there (GMRES and the whole-matrix factor converge).
 """
 from __future__ import annotations
 
@@ -15,6 +20,30 @@ from petsc4py import PETSc
 
 from .collective import Collective
 from .validation import check_symmetry
+
+STARTED_KSPS = ("cg", "pipecg", "groppcg", "fcg", "pipefcg", "gcr", "gmres", "fgmres", "lgmres", "dgmres", "pgmres",
+                "bcgs", "qmrcgs", "bicg", "richardson", "chebyshev", "minres", "symmlq")
+
+VANISHING = 1e-6        # a started solve's vectors on the Dirichlet rows: rounding, far below this share of their top
+
+
+def kept_columns(P, A, previous):
+    """The :class:`KeptColumns` of the AIJ operator ``P`` (this rank's rows ``A``): ``previous`` with the new values
+    where the nonzero pattern is the same on every rank, else a new one after the symmetry probe
+    (:func:`.validation.check_symmetry`, which raises where the asymmetry is not those rows'; ``previous`` is then
+    untouched). Collective."""
+    key = (P.getId(), A.indptr, A.indices, A.data != 0)
+    same = previous is not None and previous.key is not None and key[0] == previous.key[0] and all(
+        np.array_equal(a, b) for a, b in zip(key[1:], previous.key[1:]))
+    if not Collective(P.getComm()).any(not same):
+        columns = previous
+    else:
+        lone = check_symmetry(P, A)
+        columns = KeptColumns(tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key),
+                              None if lone is None else np.flatnonzero(lone), Collective(P.getComm()))
+    if columns.rows is not None:
+        columns.refresh(P)
+    return columns
 
 
 class KeptColumns:
@@ -26,35 +55,18 @@ class KeptColumns:
         This rank's Dirichlet rows whose columns are dropped (local numbers); None where the operator is symmetric.
     count : int
         Those rows on all ranks.
+    copy : petsc4py.PETSc.Mat or None
+        A', made at the first :meth:`refresh`.
     started : bool
-        A KSPSolve started on x_D = D^-1 b_D: M' alone is applied.
+        A KSPSolve started on x_D = D^-1 b_D: M' alone is applied to vectors that vanish on those rows.
     """
 
-    def __init__(self):
-        self.key, self.rows, self.count, self.started = None, None, 0, False
+    def __init__(self, key=None, rows=None, coll=None):
+        self.key, self.rows, self.started = key, rows, False
+        self.count = 0 if coll is None else coll.sum(0 if rows is None else rows.size)
         self.copy = self.amat = self.keep = self.diag = self.d = self.u = self.t = None
 
-    def operator(self, P, A):
-        """``P`` (AIJ, this rank's rows ``A``) itself where it is symmetric, else A' with the new values. The
-        symmetry probe (:func:`.validation.check_symmetry`, which raises where the asymmetry is not those rows')
-        runs once per nonzero pattern, decided on every rank together (collective)."""
-        key = (P.getId(), A.indptr, A.indices, A.data != 0)
-        same = self.key is not None and key[0] == self.key[0] and all(
-            np.array_equal(a, b) for a, b in zip(key[1:], self.key[1:]))
-        if Collective(P.getComm()).any(not same):
-            self.key = self.copy = self.keep = self.diag = self.u = self.t = None   # an analysis holding the old
-            # copy frees it
-            lone = check_symmetry(P, A)
-            self.rows = None if lone is None else np.flatnonzero(lone)
-            self.count = Collective(P.getComm()).sum(0 if lone is None else self.rows.size)
-            self.key = tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key)
-        if self.rows is None:
-            return P
-        self.amat = P
-        self._refresh(P)
-        return self.copy
-
-    def _refresh(self, P):
+    def refresh(self, P):
         """A' = P with the columns of :attr:`rows` dropped, their diagonal entries added back (P's pattern kept)."""
         if self.copy is None:
             self.copy = P.duplicate(copy=True)
@@ -64,6 +76,7 @@ class KeptColumns:
             self.keep.array[self.rows] = 0.0
         else:
             P.copy(self.copy, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.amat = P
         P.getDiagonal(self.diag)
         self.d = self.diag.array_r[self.rows].copy()
         self.diag.array[...] = 0.0
@@ -74,15 +87,19 @@ class KeptColumns:
         self.copy.setOption(PETSc.Mat.Option.SYMMETRIC, True)
 
     def start(self, ksp, b, x):
-        """Before a KSPSolve (not PREONLY, which takes no guess): x_D = D^-1 b_D, and :attr:`started`. Returns the
-        KSP settings this changed ({'guess': its initial-guess flag}), else None."""
-        if self.rows is None or ksp.getType() == PETSc.KSP.Type.PREONLY:
+        """Before a KSPSolve of :data:`STARTED_KSPS` whose Amat is the Pmat: x_D = D^-1 b_D, D the Amat's diagonal now
+        (a reused preconditioner's may be older), and :attr:`started`. Returns the KSP settings this changed
+        ({'guess': its initial-guess flag}), else None."""
+        self.started = False
+        amat, pmat = ksp.getOperators()
+        if self.rows is None or ksp.getType() not in STARTED_KSPS or amat.handle != pmat.handle:
             return None
         nonzero = ksp.getInitialGuessNonzero()
         if not nonzero:
             x.set(0.0)
             ksp.setInitialGuessNonzero(True)
-        x.array[self.rows] = b.array_r[self.rows] / self.d
+        amat.getDiagonal(self.t)
+        x.array[self.rows] = b.array_r[self.rows] / self.t.array_r[self.rows]
         self.started = True
         return None if nonzero else {"guess": False}
 
@@ -102,7 +119,7 @@ class KeptColumns:
             self._exact(apply, t, y)
             return
         self._exact(apply, x, y)
-        if self.started:
+        if self.started and self._vanishing(x):
             return
         u.set(0.0)                         # M x = z - M' E z, z = M' x: E z = A (z on the rows) less D z there
         u.array[rows] = y.array_r[rows]
@@ -110,6 +127,13 @@ class KeptColumns:
         t.array[rows] = 0.0
         self._exact(apply, t, u)
         y.axpy(-1.0, u)
+
+    def _vanishing(self, x) -> bool:
+        """Whether ``x`` vanishes on the Dirichlet rows, to :data:`VANISHING` of its largest entry, on every rank (a
+        started solve's vectors; not a vector PCApply gets after a solve that raised before its postSolve)."""
+        local = np.array([np.abs(x.array_r[self.rows]).max(initial=0.0), np.abs(x.array_r).max(initial=0.0)])
+        top = Collective(x.getComm()).max_array(local) if x.getComm().getSize() > 1 else local
+        return top[0] <= VANISHING * top[1]
 
     def _exact(self, apply, x, y):
         """y = M' x, exact on the Dirichlet rows (a variant's M' need not be)."""
@@ -124,7 +148,7 @@ class KeptColumns:
                 "(MatZeroRows): preconditioned without those columns, a solve starting on x = b / diagonal there"]
 
     def free(self):
-        """Drop the copy and the work vectors (a new operator is probed anew)."""
+        """Destroy the copy and the work vectors (once no analysis holds the copy); the next operator is probed."""
         for obj in (self.copy, self.keep, self.diag, self.u, self.t):
             if obj is not None:
                 obj.destroy()

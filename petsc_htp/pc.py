@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from .checks import check_message
 from .collective import Collective
 from .events import event
-from .keptcolumns import KeptColumns
+from .keptcolumns import KeptColumns, kept_columns
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .ranksplit import crossing
@@ -125,7 +125,7 @@ class HTPPC(Inspection):
             check_size(P)
             check_attached(P, coords, density)
             P = self._operator(P)
-            with _checked_rows(self.columns, P, opts.variant) as (P, A):    # this rank's rows (all on one rank)
+            with _checked_rows(self, P, opts.variant) as (P, A):    # this rank's rows (all on one rank)
                 self._setup(P, A, coords, density, opts)
             _check(self, pc, opts)
             self._values = values
@@ -269,18 +269,35 @@ class HTPPC(Inspection):
 
 
 @contextlib.contextmanager
-def _checked_rows(columns, P, variant):
+def _checked_rows(ctx, P, variant):
     """This rank's rows of the AIJ operator ``P`` (the whole matrix on one rank; a copy for the paper's ``variant``)
     checked (:func:`.validation.check_matrix`: a named error on every rank, or none), then (operator, its rows) of
-    what HTPPC preconditions: ``P``, or ``columns``' copy where Dirichlet rows keep their columns."""
+    what the HTPPC context ``ctx`` preconditions: ``P``, or a copy where Dirichlet rows keep their columns
+    (:func:`.keptcolumns.kept_columns`), which becomes ``ctx.columns`` where the block succeeds (else it is freed, and
+    the previous preconditioner stays as it was)."""
     with local_rows(P, copy=variant == "paper") as A:
         check_matrix(P, A, empty_ok=variant == "twolevel")
-        Q = columns.operator(P, A)
-        if Q is P:
-            yield P, A
+        columns = kept_columns(P, A, ctx.columns)
+        if columns.copy is None:
+            with _committed(ctx, columns):
+                yield P, A
             return
-    with local_rows(Q, copy=variant == "paper") as A:
-        yield Q, A
+    with local_rows(columns.copy, copy=variant == "paper") as A, _committed(ctx, columns):
+        yield columns.copy, A
+
+
+@contextlib.contextmanager
+def _committed(ctx, columns):
+    """``columns`` replaces ``ctx.columns`` (freed) where the block succeeds; a new one is freed where it fails."""
+    try:
+        yield
+    except BaseException:
+        if columns is not ctx.columns:
+            columns.free()
+        raise
+    if columns is not ctx.columns:
+        ctx.columns.free()
+        ctx.columns = columns
 
 
 def _check(ctx, pc, opts):

@@ -98,21 +98,22 @@ def check_symmetry(mat, rows=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
     but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows; ``rows``:
     this rank's CSR rows), return this rank's such rows (boolean: :mod:`petsc_htp.keptcolumns` drops their columns);
-    None when symmetric or known to be (MAT_SYMMETRIC). Collective."""
+    None when symmetric. A matrix flagged symmetric (MAT_SYMMETRIC) is taken at its word but for rows holding just
+    their diagonal, which are probed: PETSc keeps the flag through MatZeroRows. Collective."""
+    from .twolevel.aggregation import decoupled_rows
+
+    dirichlet = None if rows is None else decoupled_rows(rows, mat.getOwnershipRange()[0])
+    count = Collective(mat.getComm()).sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
     known, symmetric = mat.isSymmetricKnown()
-    if known and symmetric:
+    if known and symmetric and not count:
         return None
     gap, scale = _asymmetry(mat)
     if gap <= ASYMMETRY * scale:
         return None
-    dirichlet = None
-    if rows is not None:
-        from .twolevel.aggregation import decoupled_rows
-
-        dirichlet = decoupled_rows(rows, mat.getOwnershipRange()[0])
-    count = Collective(mat.getComm()).sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
     if count and _asymmetry(mat, dirichlet)[0] <= ASYMMETRY * scale:
         return dirichlet
+    if known and symmetric:         # its word for the rest
+        return None
     raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
                       "|x| |y| |A|); HTPPC needs an SPD matrix (if A is symmetric to rounding, say so with "
                       "MatSetOption(A, MAT_SYMMETRIC, PETSC_TRUE))")

@@ -10,16 +10,15 @@ import petsc4py
 petsc4py.init(sys.argv[:1])
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
-from petsc4py import PETSc  # noqa: E402
-
-import petsc_htp  # noqa: E402,F401  (the options name petsc_htp.HTPPC; imported from this checkout)
+from petsc4py import PETSc  # noqa: E402  (the options name petsc_htp.HTPPC: PCPYTHON imports it from this checkout)
 
 comm, side = PETSc.COMM_WORLD, 48
 N = side * side
 
 
-def operator(columns, scale=1.0):
-    """(A, b, x_true): Dirichlet boundary rows by MatZeroRows (``columns`` False) or MatZeroRowsColumns."""
+def operator(columns, scale=1.0, flagged=False, diag=4.0):
+    """(A, b, x_true): Dirichlet boundary rows by MatZeroRows (``columns`` False) or MatZeroRowsColumns; ``flagged``:
+    MAT_SYMMETRIC set before (PETSc keeps it through MatZeroRows)."""
     A = PETSc.Mat().createAIJ([N, N], nnz=(5, 4), comm=comm)
     lo, hi = A.getOwnershipRange()
     def cell(i, j):
@@ -35,14 +34,14 @@ def operator(columns, scale=1.0):
                 total += k
         A.setValue(row, row, total + 1e-3)
     A.assemble()
-    A.setOption(PETSc.Mat.Option.SYMMETRIC, False)
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, flagged)
     x_true = A.createVecRight()
     x_true.array[:] = np.sin(0.37 * np.arange(lo, hi)) + 1.0
     b = A.createVecLeft()
     A.mult(x_true, b)
     boundary = [r for r in range(lo, hi) if r // side in (0, side - 1) or r % side in (0, side - 1)]
     rows = np.array(boundary, dtype=PETSc.IntType)
-    (A.zeroRowsColumns if columns else A.zeroRows)(rows, diag=4.0, x=x_true, b=b)
+    (A.zeroRowsColumns if columns else A.zeroRows)(rows, diag=diag, x=x_true, b=b)
     return A, b, x_true
 
 
@@ -71,10 +70,12 @@ def solve(A, b, x_true, ksp_type, options, name):
 
 A, b, x_true = operator(False)
 S, c, _ = operator(True)
-for kind in ("cg", "gmres", "bicg", "preonly"):
+for kind in ("cg", "gmres", "bicg", "preonly", "cgs"):
     for label, options in (("direct", {}), ("twolevel", {"htp_direct_max": 0})):
         if kind == "preonly" and label == "twolevel":
             continue
+        if kind == "cgs":          # right preconditioning mishandles a start: not started, M = (I - M'E) M'
+            options = {**options, "ksp_pc_side": "right"}
         for mat, rhs, which in ((A, b, "rows"), (S, c, "rowscols")):
             ksp = solve(mat, rhs, x_true, kind, options, f"{which}_{label}_{kind}")
 ksp = solve(A, b, x_true, "cg", {"htp_direct_max": 0}, "view")
@@ -107,3 +108,69 @@ x.axpy(-1.0, y_true)
 ctx = ksp.getPC().getPythonContext()
 PETSc.Sys.Print(f"again its {ksp.getIterationNumber()} reason {ksp.getConvergedReason()} error "
                 f"{x.norm() / y_true.norm():.3e} analyses {ctx.analysis_count} numeric {ctx.numeric_count}")
+# a preconditioner reused on new values, new diagonal entries on the Dirichlet rows: the start reads them now
+A, b, x_true = operator(False)
+ksp = solve(A, b, x_true, "cg", {"htp_direct_max": 0}, "reuse")
+ksp.getPC().setReusePreconditioner(True)
+C, e, z_true = operator(False, scale=2.0, diag=0.5)
+C.copy(A, PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+x = A.createVecRight()
+ksp.solve(e, x)
+x.axpy(-1.0, z_true)
+PETSc.Sys.Print(f"reused its {ksp.getIterationNumber()} reason {ksp.getConvergedReason()} error "
+                f"{x.norm() / z_true.norm():.3e}")
+# a solve that raised mid-way (a monitor) skips postSolve: PCApply on a vector that does not vanish on those rows
+# still applies the whole M (the factor's: A^-1)
+A, b, x_true = operator(False)
+ksp = solve(A, b, x_true, "cg", {}, "aborted")
+
+
+def monitor(ksp, its, rnorm):
+    if its == 1:
+        raise RuntimeError("stopped by the user's monitor")
+
+
+ksp.setMonitor(monitor)
+try:
+    ksp.solve(b, A.createVecRight())
+except PETSc.Error:
+    pass
+y, z = A.createVecs()
+ksp.getPC().apply(b, y)
+A.mult(y, z)
+z.axpy(-1.0, b)
+PETSc.Sys.Print(f"after abort {z.norm() / b.norm():.3e}")
+# a new operator refused (not symmetric elsewhere) leaves the previous preconditioner whole
+ksp.monitorCancel()
+R = A.duplicate(copy=True)
+lo, hi = R.getOwnershipRange()
+if lo <= 5 * side + 5 < hi:
+    R.setValue(5 * side + 5, 5 * side + 6, -7.0, addv=PETSc.InsertMode.ADD_VALUES)
+R.assemble()
+ksp.setOperators(R)
+try:
+    ksp.solve(b, A.createVecRight())
+    PETSc.Sys.Print("refused no")
+except PETSc.Error:
+    ctx = ksp.getPC().getPythonContext()
+    ctx.apply(ksp.getPC(), b, y)
+    A.mult(y, z)
+    z.axpy(-1.0, b)
+    PETSc.Sys.Print(f"refused yes, previous M {z.norm() / b.norm():.3e}")
+# MAT_SYMMETRIC set before MatZeroRows, which keeps it: probed all the same
+F, f, f_true = operator(False, flagged=True)
+solve(F, f, f_true, "cg", {"htp_direct_max": 0}, "flagged")
+# patterns in turn leave nothing to PETSc's garbage on several ranks (objects dropped without a destroy land there)
+import gc  # noqa: E402
+
+ksp = solve(A, b, x_true, "cg", {"htp_direct_max": 0}, "turns")
+gc.collect()
+PETSc.garbage_cleanup(comm)                 # this program's own dropped objects
+sol = A.createVecRight()
+for M, rhs in ((S, c), (A, b), (S, c), (A, b)):
+    ksp.setOperators(M)
+    ksp.solve(rhs, sol)
+ksp.destroy()
+sol.destroy()
+gc.collect()
+PETSc.garbage_view(comm)
