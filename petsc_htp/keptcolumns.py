@@ -19,7 +19,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .collective import Collective
-from .validation import check_symmetry
+from .validation import check_symmetry, probe_values
 
 STARTED_KSPS = ("cg", "pipecg", "groppcg", "fcg", "pipefcg", "gcr", "gmres", "fgmres", "lgmres", "dgmres", "pgmres",
                 "bcgs", "qmrcgs", "bicg", "richardson", "chebyshev", "minres", "symmlq")
@@ -87,21 +87,38 @@ class KeptColumns:
         self.copy.setOption(PETSc.Mat.Option.SYMMETRIC, True)
 
     def start(self, ksp, b, x):
-        """Before a KSPSolve of :data:`STARTED_KSPS` whose Amat is the Pmat: x_D = D^-1 b_D, D the Amat's diagonal now
-        (a reused preconditioner's may be older), and :attr:`started`. Returns the KSP settings this changed
-        ({'guess': its initial-guess flag}), else None."""
+        """Before a KSPSolve of :data:`STARTED_KSPS`: x_D = D^-1 b_D, D the Amat's diagonal now (a reused
+        preconditioner's may be older), and :attr:`started`; an Amat other than the Pmat (a matrix-free Jacobian
+        beside an assembled one) only where its rows there hold just D (:meth:`_diagonal_rows`). Returns the KSP
+        settings this changed ({'guess': its initial-guess flag}), else None."""
         self.started = False
         amat, pmat = ksp.getOperators()
-        if self.rows is None or ksp.getType() not in STARTED_KSPS or amat.handle != pmat.handle:
+        if self.rows is None or ksp.getType() not in STARTED_KSPS:
+            return None
+        if amat.handle == pmat.handle:
+            amat.getDiagonal(self.t)
+            d = self.t.array_r[self.rows].copy()
+        elif self._diagonal_rows(amat):
+            d = self.d
+        else:
             return None
         nonzero = ksp.getInitialGuessNonzero()
         if not nonzero:
             x.set(0.0)
             ksp.setInitialGuessNonzero(True)
-        amat.getDiagonal(self.t)
-        x.array[self.rows] = b.array_r[self.rows] / self.t.array_r[self.rows]
+        x.array[self.rows] = b.array_r[self.rows] / d
         self.started = True
         return None if nonzero else {"guess": False}
+
+    def _diagonal_rows(self, amat) -> bool:
+        """Whether ``amat``'s Dirichlet rows hold just the Pmat's diagonal there: (A v)_D = D v_D for a probe v, on
+        every rank (one product; collective)."""
+        start, end = self.u.getOwnershipRange()
+        self.u.setArray(probe_values(start, end, 3))
+        amat.mult(self.u, self.t)
+        gap = np.abs(self.t.array_r[self.rows] - self.d * self.u.array_r[self.rows]).max(initial=0.0)
+        top = Collective(amat.getComm()).max_array(np.array([gap, np.abs(self.d).max(initial=0.0)]))
+        return top[0] <= 1e-6 * top[1]           # a matrix-free product: finite differences
 
     def apply(self, apply, x, y, transpose=False):
         """y = M x from ``apply(x, y)``, M' (see the module); ``transpose``: y = M^T x."""

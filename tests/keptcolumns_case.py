@@ -157,6 +157,23 @@ except PETSc.Error:
     A.mult(y, z)
     z.axpy(-1.0, b)
     PETSc.Sys.Print(f"refused yes, previous M {z.norm() / b.norm():.3e}")
+# an Amat other than the Pmat whose Dirichlet rows hold just the Pmat's diagonal (a copy; MatZeroRowsColumns'): started
+for amat, rhs, name in ((A.duplicate(copy=True), b, "amatcopy"), (S, c, "amatsym")):
+    prefix = f"{name}_"
+    for key, value in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 300,
+                       "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_direct_max": 0}.items():
+        PETSc.Options(prefix).setValue(key, value)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOptionsPrefix(prefix)
+    ksp.setOperators(amat, A)
+    ksp.setFromOptions()
+    sol = amat.createVecRight()
+    ksp.solve(rhs, sol)
+    sol.axpy(-1.0, x_true)
+    PETSc.Sys.Print(f"pmat {name} its {ksp.getIterationNumber()} reason {ksp.getConvergedReason()} error "
+                    f"{sol.norm() / x_true.norm():.3e}")
+    ksp.destroy()
+    sol.destroy()
 # MAT_SYMMETRIC set before MatZeroRows, which keeps it: probed all the same
 F, f, f_true = operator(False, flagged=True)
 solve(F, f, f_true, "cg", {"htp_direct_max": 0}, "flagged")

@@ -21,7 +21,8 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
     as small; M outside a KSPSolve is A^-1 with the factor (and its transpose A^-T), also after a solve that raised
     mid-way, the two-level M^T is M's adjoint; -ksp_view says what was done; new values keep the analysis; a
     preconditioner reused on new Dirichlet diagonals starts on them; a refused new operator leaves the previous M
-    whole; MAT_SYMMETRIC kept through MatZeroRows does not hide those rows; nothing lands in PETSc's garbage."""
+    whole; MAT_SYMMETRIC kept through MatZeroRows does not hide those rows; an Amat other than the Pmat whose rows
+    there hold just that diagonal is started too; nothing lands in PETSc's garbage."""
     out = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(CASE)], capture_output=True, text=True,
                          timeout=600)
     text = out.stdout + out.stderr
@@ -49,3 +50,6 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
     assert float(re.search(r"^after abort (\S+)$", text, re.M).group(1)) <= 1e-12, text
     assert float(re.search(r"^refused yes, previous M (\S+)$", text, re.M).group(1)) <= 1e-12, text
     assert re.findall(r"Total entries: (\d+)", text) == ["0"] * ranks, text
+    pmat = re.findall(r"^pmat (\S+) its (\d+) reason (\d+) error (\S+)$", text, re.M)
+    assert [m[0] for m in pmat] == ["amatcopy", "amatsym"], text
+    assert all(int(m[1]) <= 25 and float(m[3]) <= 1e-7 for m in pmat), pmat
