@@ -161,8 +161,8 @@ class KeptColumns:
         """A ``-ksp_view`` line where there are such rows."""
         if self.rows is None:
             return []
-        return [f"{self.count} Dirichlet row(s) hold just their diagonal while the other rows keep their couplings "
-                "(MatZeroRows): preconditioned without those columns, a solve starting on x = b / diagonal there"]
+        return [f"{self.count} row(s) hold just their diagonal (Dirichlet rows), other rows keep couplings to some of "
+                "them (MatZeroRows): preconditioned without their columns; a started solve sets x = b / diagonal there"]
 
     def free(self):
         """Destroy the copy and the work vectors (once no analysis holds the copy); the next operator is probed."""
