@@ -42,7 +42,12 @@ def kept_columns(P, A, previous):
         columns = KeptColumns(tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key),
                               None if lone is None else np.flatnonzero(lone), Collective(P.getComm()))
     if columns.rows is not None:
-        columns.refresh(P)
+        try:
+            columns.refresh(P)
+        except Exception:
+            if columns is not previous:
+                columns.free()
+            raise
     return columns
 
 
@@ -87,9 +92,9 @@ class KeptColumns:
         self.copy.setOption(PETSc.Mat.Option.SYMMETRIC, True)
 
     def start(self, ksp, b, x):
-        """Before a KSPSolve of :data:`STARTED_KSPS`: x_D = D^-1 b_D, D the Amat's diagonal now (a reused
-        preconditioner's may be older), and :attr:`started`; an Amat other than the Pmat (a matrix-free Jacobian
-        beside an assembled one) only where its rows there hold just D (:meth:`_diagonal_rows`). Returns the KSP
+        """Before a KSPSolve of :data:`STARTED_KSPS`: x_D = D^-1 b_D and :attr:`started`, D the Amat's diagonal now
+        (a reused preconditioner's may be older); for an Amat other than the Pmat (a matrix-free Jacobian beside an
+        assembled one), the Pmat's, where the Amat's rows there hold just it (:meth:`_diagonal_rows`). Returns the KSP
         settings this changed ({'guess': its initial-guess flag}), else None."""
         self.started = False
         amat, pmat = ksp.getOperators()
@@ -111,14 +116,20 @@ class KeptColumns:
         return None if nonzero else {"guess": False}
 
     def _diagonal_rows(self, amat) -> bool:
-        """Whether ``amat``'s Dirichlet rows hold just the Pmat's diagonal there: (A v)_D = D v_D for a probe v, on
-        every rank (one product; collective)."""
-        start, end = self.u.getOwnershipRange()
-        self.u.setArray(probe_values(start, end, 3))
-        amat.mult(self.u, self.t)
-        gap = np.abs(self.t.array_r[self.rows] - self.d * self.u.array_r[self.rows]).max(initial=0.0)
-        top = Collective(amat.getComm()).max_array(np.array([gap, np.abs(self.d).max(initial=0.0)]))
-        return top[0] <= 1e-6 * top[1]           # a matrix-free product: finite differences
+        """Whether ``amat``'s Dirichlet rows hold just the Pmat's diagonal there, each to 1e-6 of it (a matrix-free
+        product: finite differences): (A v)_D = D v_D for a probe v, on every rank (one product, on vectors of its
+        own: a product that raises leaves them locked; collective)."""
+        v, av = amat.createVecs()
+        try:
+            start, end = v.getOwnershipRange()
+            v.setArray(probe_values(start, end, 3))
+            amat.mult(v, av)
+            dv = self.d * v.array_r[self.rows]
+            off = np.abs(av.array_r[self.rows] - dv) > 1e-6 * np.abs(dv)
+            return not Collective(amat.getComm()).any(bool(off.any()))
+        finally:
+            v.destroy()
+            av.destroy()
 
     def apply(self, apply, x, y, transpose=False):
         """y = M x from ``apply(x, y)``, M' (see the module); ``transpose``: y = M^T x."""

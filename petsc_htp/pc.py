@@ -282,7 +282,7 @@ def _checked_rows(ctx, P, variant):
             with _committed(ctx, columns):
                 yield P, A
             return
-    with local_rows(columns.copy, copy=variant == "paper") as A, _committed(ctx, columns):
+    with _committed(ctx, columns), local_rows(columns.copy, copy=variant == "paper") as A:
         yield columns.copy, A
 
 

@@ -5,9 +5,10 @@ first offending global row, so every rank raises the same error naming the probl
 no rank is left waiting in a collective that another one skipped. Checked: a non-square or empty
 matrix, a rank without rows, NaN or Inf entries, empty rows, missing or zero diagonal entries, negative
 diagonal entries (HTPPC needs an SPD matrix), attached null space vectors split unlike the rows, coordinates attached
-on some ranks only (:func:`check_attached`), and, once per nonzero pattern unless the matrix says it is symmetric,
-symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y| (where Dirichlet rows whose columns the other
-rows keep are the only asymmetry, :func:`check_symmetry` returns them: :mod:`petsc_htp.keptcolumns` takes them).
+on some ranks only (:func:`check_attached`), and, once per nonzero pattern unless the matrix says it is symmetric
+and holds no row of just its diagonal, symmetry: a random probe x^T A y - y^T A x, relative to |x| |A| |y| (where
+Dirichlet rows whose columns the other rows keep are the only asymmetry, :func:`check_symmetry` returns them:
+:mod:`petsc_htp.keptcolumns` takes them).
 """
 from __future__ import annotations
 
@@ -97,9 +98,10 @@ def check_attached(mat, coords, density) -> None:
 def check_symmetry(mat, rows=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
     but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows; ``rows``:
-    this rank's CSR rows), return this rank's such rows (boolean: :mod:`petsc_htp.keptcolumns` drops their columns);
-    None when symmetric. A matrix flagged symmetric (MAT_SYMMETRIC) is taken at its word but for rows holding just
-    their diagonal, which are probed: PETSc keeps the flag through MatZeroRows. Collective."""
+    this rank's CSR rows, given on every rank or on none), return this rank's such rows (boolean:
+    :mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged symmetric
+    (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc keeps the
+    flag through MatZeroRows. Collective."""
     from .twolevel.aggregation import decoupled_rows
 
     dirichlet = None if rows is None else decoupled_rows(rows, mat.getOwnershipRange()[0])

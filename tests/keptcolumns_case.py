@@ -174,6 +174,28 @@ for amat, rhs, name in ((A.duplicate(copy=True), b, "amatcopy"), (S, c, "amatsym
                     f"{sol.norm() / x_true.norm():.3e}")
     ksp.destroy()
     sol.destroy()
+# an Amat whose product raises (a shell): the probe's failure leaves no work vector of HTPPC's locked
+
+
+class Failing:
+    def mult(self, mat, x, y):
+        raise RuntimeError("a transient failure")
+
+
+shell = PETSc.Mat().createPython(A.getSizes(), Failing(), comm=comm)
+shell.setUp()
+ksp = solve(A, b, x_true, "cg", {"htp_direct_max": 0}, "shell")
+ksp.setOperators(shell, A)
+try:
+    ksp.solve(b, A.createVecRight())
+except PETSc.Error:
+    ksp.setOperators(A, A)
+    ksp.solve(b, A.createVecRight())
+    ksp.getPC().apply(b, y)
+    A.mult(y, z)
+    z.axpy(-1.0, b)
+    PETSc.Sys.Print(f"after a failing Amat its {ksp.getIterationNumber()} reason {ksp.getConvergedReason()} "
+                    f"PCApply {z.norm() / b.norm():.3e}")
 # MAT_SYMMETRIC set before MatZeroRows, which keeps it: probed all the same
 F, f, f_true = operator(False, flagged=True)
 solve(F, f, f_true, "cg", {"htp_direct_max": 0}, "flagged")
