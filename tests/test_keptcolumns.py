@@ -31,7 +31,7 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
     assert "WARNING! There are options you set that were not used" not in text, text
     solves = {m[0]: (int(m[1]), int(m[2]), float(m[3]), float(m[4])) for m in
               re.findall(r"^solve (\S+) \S+ its (\d+) reason (-?\d+) relres (\S+) error (\S+)$", text, re.M)}
-    assert len(solves) == 25, text
+    assert len(solves) == 26, text
     for name, (its, reason, relres, error) in solves.items():
         assert reason > 0, name
         assert relres <= 1e-8 and error <= 1e-7, (name, relres, error)
