@@ -19,10 +19,10 @@ import numpy as np
 from petsc4py import PETSc
 
 from .collective import Collective
+from .twolevel.forms import DEFLATED_KSPS
 from .validation import check_symmetry, probe_values
 
-STARTED_KSPS = ("cg", "pipecg", "groppcg", "fcg", "pipefcg", "gcr", "gmres", "fgmres", "lgmres", "dgmres", "pgmres",
-                "bcgs", "qmrcgs", "bicg", "richardson", "chebyshev", "minres", "symmlq")
+STARTED_KSPS = DEFLATED_KSPS + ("minres", "symmlq")     # those whose start the deflated form trusts, and these two
 
 VANISHING = 1e-6        # a started solve's vectors on the Dirichlet rows: rounding, far below this share of their top
 
@@ -35,12 +35,13 @@ def kept_columns(P, A, previous):
     key = (P.getId(), A.indptr, A.indices, A.data != 0)
     same = previous is not None and previous.key is not None and key[0] == previous.key[0] and all(
         np.array_equal(a, b) for a, b in zip(key[1:], previous.key[1:]))
-    if not Collective(P.getComm()).any(not same):
+    coll = Collective(P.getComm())
+    if not coll.any(not same):
         columns = previous
     else:
         lone = check_symmetry(P, A)
         columns = KeptColumns(tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key),
-                              None if lone is None else np.flatnonzero(lone), Collective(P.getComm()))
+                              None if lone is None else np.flatnonzero(lone), coll)
     if columns.rows is not None:
         try:
             columns.refresh(P)
@@ -67,7 +68,7 @@ class KeptColumns:
     """
 
     def __init__(self, key=None, rows=None, coll=None):
-        self.key, self.rows, self.started = key, rows, False
+        self.key, self.rows, self.started, self.coll = key, rows, False, coll
         self.count = 0 if coll is None else coll.sum(0 if rows is None else rows.size)
         self.copy = self.amat = self.keep = self.diag = self.d = self.u = self.t = None
 
@@ -126,7 +127,7 @@ class KeptColumns:
             amat.mult(v, av)
             dv = self.d * v.array_r[self.rows]
             off = np.abs(av.array_r[self.rows] - dv) > 1e-6 * np.abs(dv)
-            return not Collective(amat.getComm()).any(bool(off.any()))
+            return not self.coll.any(bool(off.any()))
         finally:
             v.destroy()
             av.destroy()
@@ -160,7 +161,7 @@ class KeptColumns:
         """Whether ``x`` vanishes on the Dirichlet rows, to :data:`VANISHING` of its largest entry, on every rank (a
         started solve's vectors; not a vector PCApply gets after a solve that raised before its postSolve)."""
         local = np.array([np.abs(x.array_r[self.rows]).max(initial=0.0), np.abs(x.array_r).max(initial=0.0)])
-        top = Collective(x.getComm()).max_array(local) if x.getComm().getSize() > 1 else local
+        top = self.coll.max_array(local)
         return top[0] <= VANISHING * top[1]
 
     def _exact(self, apply, x, y):
