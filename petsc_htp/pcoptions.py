@@ -48,7 +48,8 @@ HELP = {
     "coarse_tol": "twolevel eig/learned: r more candidates per leaf go through the same step; a leaf keeps those "
                   "whose Ritz value is at most tol x its mean diagonal (0: exactly r per leaf)",
     "coarse_solver": "twolevel: auto (LU; in 3-D two GAMG V-cycles once the coarse operator of paired "
-                     "aggregation leaves has more than 1536 rows, one once another has more than 8192, in 2-D two "
+                     "aggregation leaves has more than 1536 rows, one once one with near null vectors has more "
+                     "than 4096 or another more than 8192, in 2-D two "
                      "once it has more than 400000, for a bare matrix's aggregation leaves 131072, "
                      "16384 on several ranks, or where their coarse graph grows as no mesh's), lu (redundant on "
                      "more than one rank) or gamg; -htp_cs_* options "

@@ -146,6 +146,10 @@ def test_every_ball_search_gives_the_same_balls():
         np.testing.assert_array_equal(bfs, gs._ball_sizes_by_paths(M, seeds, gs.RADIUS))
         assert (bfs[1] > bfs[0]).all()
     assert gs._by_products(meshes.p1_laplacian(3, 8000)[0].tocsr()) and not gs._by_products(foreign.dmda(2, 256)[0])
+    tets = meshes.p1_laplacian(3, 8000)[0].tocsr()
+    dense = sp.kron(tets, np.ones((5, 5)), format="csr")           # 5 unknowns a node: 75 entries a row, 3M in all
+    assert dense.nnz > gs.PRODUCTS[2] and gs._by_products(dense)
+    assert not gs._by_products(sp.kron(foreign.dmda(3, 64)[0], np.ones((3, 3)), format="csr"))    # 21 a row, 5M
 
 
 def test_a_dense_row_is_reached_but_not_grown_through():

@@ -712,9 +712,11 @@ def test_coarse_solver_by_the_problem():
         "lu", "gamg")
     assert sizing.direct_limit(2, 2) == sizing.COARSE_REDUNDANT_MAX < several < top
     assert sizing.coarse_options(2, False, "gamg")["pc_gamg_aggressive_coarsening"] == "0"
-    limit = sizing.COARSE_DIRECT_MAX[3]                      # 3-D Morton leaves and near null vectors: 8192
+    limit = sizing.COARSE_DIRECT_MAX[3]                      # 3-D Morton leaves: 8192
     assert (sizing.coarse_solver(3, limit, 1, "morton"), sizing.coarse_solver(3, limit + 1, 1, "morton")) == ("lu", "gamg")
-    assert sizing.coarse_solver(3, limit, 1, near=6) == "lu"
+    near = sizing.COARSE_NEAR_DIRECT_MAX_3D                  # ... near null vectors: 4096 (denser, the LU fills more)
+    assert (sizing.coarse_solver(3, near, 1, near=6), sizing.coarse_solver(3, near + 1, 2, near=6)) == ("lu", "gamg")
+    assert near < limit
     paired = sizing.COARSE_PAIRED_DIRECT_MAX_3D              # 3-D paired aggregation leaves: two V-cycles above 1536
     assert (sizing.coarse_solver(3, paired), sizing.coarse_solver(3, paired + 1)) == ("lu", "gamg") and paired < limit
     assert sizing.coarse_options(3, False, "gamg", "aggregation")["pc_mg_multiplicative_cycles"] == "2"

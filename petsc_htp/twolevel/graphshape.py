@@ -27,6 +27,7 @@ RADIUS = 2          # the balls compared have radius RADIUS and 2 RADIUS
 CUT = 2.0           # growth exponent above which the graph is taken as 3-D
 PRODUCTS = (60000, 8.0, 2000000)   # the balls grow by sparse products up to this many stored entries, or with
                                     # more stored entries per row than this up to this many (:func:`_by_products`)
+DENSE_PRODUCTS = (64.0, 32000000)   # ... or with more than this many a row (Q2 vector blocks) up to this many
 PATHS = 2 ** 17     # rows times seeds up to which one compiled shortest-path search grows the balls (_by_paths)
 HUB = 16            # rows holding more than HUB times the median row's stored entries are not grown through
 
@@ -98,9 +99,14 @@ def _ball_sizes_by_paths(A, seeds, radius) -> np.ndarray:
 def _by_products(A) -> bool:
     """Whether :func:`_ball_sizes_by_products` is the cheaper search for ``A`` (:data:`PRODUCTS`): on the foreign study's
     matrices 2.5-4.1 against 0.7-1.9 ms on P1 tets at 1 000-64 000 rows, 0.4-0.6 against 0.4 ms on 5-point
-    stencils and triangles up to 8 000, but 0.4-0.9 against 0.7-1.5 ms on 5- and 7-point stencils at 64 000."""
+    stencils and triangles up to 8 000, but 0.4-0.9 against 0.7-1.5 ms on 5- and 7-point stencils at 64 000.
+    Rows of :data:`DENSE_PRODUCTS` entries make the searched balls hold most of a moderate matrix: PETSc's snes ex62
+    velocity block (3-D Q2, 36 501 rows of 162 entries) 50 against 481 ms, where P1 tets and Q1 hexahedra at 262 144
+    rows (15 and 27 a row) take 5-7 ms either way."""
     small, rich, most = PRODUCTS
-    return A.nnz <= small or (A.nnz > rich * A.shape[0] and A.nnz <= most)
+    per_row = A.nnz / max(A.shape[0], 1)
+    return A.nnz <= small or (per_row > rich and A.nnz <= most) or (
+        per_row > DENSE_PRODUCTS[0] and A.nnz <= DENSE_PRODUCTS[1])
 
 
 def _ball_sizes(A, seeds, radius) -> np.ndarray:

@@ -106,6 +106,12 @@ COARSE_AMG = {"pc_type": "gamg", "pc_gamg_aggressive_coarsening": "0",  # plain 
 COARSE_AMG_3D = {"pc_type": "gamg", "pc_gamg_threshold": "0.02", **SAFE_SMOOTHER}   # aggregation leaves: balanced
 COARSE_AMG_3D_PAIRED = {**COARSE_AMG_3D, "pc_mg_multiplicative_cycles": "2"}   # ... paired ones: two, deflated
 COARSE_PAIRED_DIRECT_MAX_3D = 1536          # 3-D paired aggregation leaves: coarse rows from which GAMG serves
+COARSE_NEAR_DIRECT_MAX_3D = 4096            # 3-D with near null vectors (a column per vector and leaf): the same
+# (their coarse operator holds about 90 entries a row and its LU grows as the square of its rows): PETSc's snes ex17,
+# P1 tetrahedra, rigid-body modes, 89 373 rows (4 807 coarse rows, LU fill 4.3M): 2.13 s setup + 0.43 solve (31
+# iterations) with the LU against 1.02 + 0.50 (32) with GAMG's V-cycle, on 2 ranks 2.33 against 1.05 s setup; at
+# 20 577 rows (1 183 coarse rows) level (30 iterations, 220 ms setup either way); examples/elasticity.py -dim 3 -side
+# 40 (3 091 coarse rows, fill 1.8M) the LU 5.5 + 2.0 s (35) against 6.5 + 2.7 (39), side 32 (1 825) level
 BAND_WIDTH = 112                            # one rank: RCM bandwidth up to which LAPACK's band factor serves
 BAND_RCM_MAX = 32768                        # ... rows up to which a bare matrix's RCM order is tried (2.5 ms) ...
 BAND_CHECK_MAX = 262144                     # ... and its own order (0.5 ms at 65 536 rows: a strip numbered across)
@@ -234,13 +240,15 @@ def coarse_solver(dim: int, rows: int, ranks: int = 1, kind: str = "aggregation"
 
 
 def direct_limit(dim: int, ranks: int = 1, kind: str = "aggregation", near: int = 0) -> int:
-    """Coarse rows up to which :func:`coarse_solver` factors the coarse operator: ``COARSE_DIRECT_MAX[3]`` in 3-D; in
+    """Coarse rows up to which :func:`coarse_solver` factors the coarse operator: in 3-D
+    :data:`COARSE_PAIRED_DIRECT_MAX_3D` for aggregation leaves, :data:`COARSE_NEAR_DIRECT_MAX_3D` with near null
+    vectors, else ``COARSE_DIRECT_MAX[3]``; in
     2-D for aggregation leaves without near null vectors :data:`COARSE_SCALAR_DIRECT_MAX` on one rank and
     :data:`COARSE_REDUNDANT_MAX` on several, else ``COARSE_DIRECT_MAX[2]`` on one and
     :data:`COARSE_REDUNDANT_LU_MAX` on several (a redundant LU: every rank factors it whole)."""
     plain = kind == "aggregation" and not near
     if dim == 3:
-        return COARSE_PAIRED_DIRECT_MAX_3D if plain else COARSE_DIRECT_MAX[3]
+        return COARSE_PAIRED_DIRECT_MAX_3D if plain else COARSE_NEAR_DIRECT_MAX_3D if near else COARSE_DIRECT_MAX[3]
     if ranks == 1:
         return COARSE_SCALAR_DIRECT_MAX if plain else COARSE_DIRECT_MAX[2]
     return COARSE_REDUNDANT_MAX if plain else COARSE_REDUNDANT_LU_MAX
