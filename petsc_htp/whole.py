@@ -52,7 +52,7 @@ class WholeChoice:
         n, coll = mat.getSize()[0], Collective(mat.getComm())
         per_row = coll.sum(A.nnz) / max(n, 1)
         if coll.size > 1 and coll.any(A.shape[0] == 0):
-            return self._exact(self._empty_rank(n, coll.size, per_row))
+            return self._exact(self._empty_rank(n, coll, A.shape[0], per_row))
         if not plain:
             return None
         if o.direct_max >= 0:
@@ -165,16 +165,16 @@ class WholeChoice:
         with diagonal_block(mat, A) as block:
             return graph_shape(block, want_weak=False, samples=8)
 
-    @staticmethod
-    def _empty_rank(n, ranks, per_row):
-        """A matrix with a rank that owns no rows, which the two-level method cannot take: whatever the options, up to
-        :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank (Cholesky where rows hold at
-        most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above a named error."""
+    def _empty_rank(self, n, coll, mine, per_row):
+        """A matrix with a rank that owns no rows (this rank ``mine``), which the two-level method cannot take as it is:
+        whatever the options, up to :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank
+        (Cholesky where rows hold at most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above the
+        two-level method on as many ranks as own rows, the rows moved there ('telescope', :attr:`why` saying so;
+        collective)."""
         from .twolevel import sizing
-        from .validation import MatrixError
 
         if n <= sizing.REDUNDANT_MAX:
             return "cholesky" if per_row <= sizing.RICH_ROW else "icc"
-        raise MatrixError(f"the matrix has a rank without rows ({n} rows on {ranks} ranks); HTPPC's two-level "
-                          f"method needs rows on every rank (up to {sizing.REDUNDANT_MAX} rows one factor of the whole "
-                          "matrix serves instead): give every rank rows, or take PCTELESCOPE around HTPPC")
+        empty = coll.sum(int(mine == 0))
+        self.why = f"{empty} of the {coll.size} ranks own no rows, and the two-level method needs rows on every rank"
+        return "telescope"

@@ -211,12 +211,24 @@ def case_rank_without_rows():
 
 
 def case_rank_without_rows_large():
-    """A 2-D Laplacian of 9 216 rows (more than one gathered factor serves) on the first rank alone."""
+    """A 2-D Laplacian of 9 216 rows (more than one gathered factor serves) on the first rank alone: HTPPC on the
+    ranks that own rows (there its banded factor)."""
     side = 96
     T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
     A = sp.kronsum(T, T).tocsr()
     rows_on = [A.shape[0]] + [0] * (COMM.getSize() - 1)
     return outcome(dist(A, rows_on=rows_on), np.ones(A.shape[0]))[0]
+
+
+def case_rank_without_rows_twolevel():
+    """A 2-D Laplacian of 40 000 rows on the first rank alone: the two-level method on the ranks that own rows
+    (PCTELESCOPE moves them there)."""
+    side = 200
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    A = sp.kronsum(T, T).tocsr()
+    rows_on = [A.shape[0]] + [0] * (COMM.getSize() - 1)
+    text, ksp = outcome(dist(A, rows_on=rows_on), np.ones(A.shape[0]))
+    return f"{text} {getattr(ksp.getPC().getPythonContext().setup, 'kind', 'twolevel')}"
 
 
 def case_fewer_rows_than_ranks():

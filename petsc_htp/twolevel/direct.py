@@ -43,17 +43,24 @@ GROWN = {"pc_type": "asm", "pc_asm_type": "basic", "pc_asm_overlap": str(OVERLAP
          "sub_pc_factor_shift_type": "positive_definite"}
 BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 INCOMPLETE = ("icc", *BLOCKED)                     # kinds chosen for the iterations they save
+TELESCOPED = {"pc_type": "telescope", "telescope_pc_type": "python", "telescope_pc_python_type": "petsc_htp.HTPPC"}
+# 'telescope': where ranks own no rows, HTPPC on a subcommunicator of as many ranks as own rows (PCTELESCOPE moves
+# the rows there; its inner KSP is PREONLY)
+OWN = (*BLOCKED, "telescope")                      # kinds that are no factor gathered on every rank (PCREDUNDANT)
 
 
-def factor_options(kind: str, ranks: int) -> dict:
+def factor_options(kind: str, ranks: int, reduction: int = 1) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks (:data:`GATHERED` where it differs) inside
     PCREDUNDANT, which gathers the whole
     matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
     dominant, shifted, wide or grid-aligned rows, a graph that is no mesh): ICC(0) of each rank's diagonal block
-    (:data:`BLOCKS`), and for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers,
-    additive and symmetric (:data:`GROWN`)."""
+    (:data:`BLOCKS`), for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers,
+    additive and symmetric (:data:`GROWN`), and for 'telescope' HTPPC on every ``reduction``-th rank
+    (:data:`TELESCOPED`)."""
     if kind in BLOCKED:
         return dict(BLOCKED[kind])
+    if kind == "telescope":
+        return {**TELESCOPED, "pc_telescope_reduction_factor": str(reduction)}
     if ranks == 1:
         return dict(FACTORS[kind])
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in GATHERED.get(kind, FACTORS[kind]).items()}}
@@ -122,14 +129,14 @@ class DirectPC:
         if self.ranks > 1 and self.holds is None:
             self.range = self._constant_null(rows)
         if self.pc is None:
-            factor = factor_options(self.kind, self.ranks)
+            factor = factor_options(self.kind, self.ranks, self._reduction(rows))
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
             if self.order is not None and self._band() is not None:
                 self._band().band, self.order = self.order, None        # the choice's order (one rank)
-            if self.ranks > 1 and self.kind not in BLOCKED and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
+            if self.ranks > 1 and self.kind not in OWN and self.pc.getType() != "redundant":   # -htp_leaf_pc_type is
                 self.pc.setType("redundant")      # the leaf solver's: the gathered factor's is -htp_leaf_redundant_pc_type
             key = "pc_factor_mat_ordering_type"                # (each block's ICC(0) orders as PETSc's ICC does)
-            self.ordering = None if self.kind in BLOCKED or self.kind == "band" else PETSc.Options(
+            self.ordering = None if self.kind in OWN or self.kind == "band" else PETSc.Options(
                 self.prefix).getString(("redundant_" if self.ranks > 1 else "") + key, FACTORS[self.kind][key])
         else:
             self.pc.setOperators(target, target)
@@ -141,7 +148,7 @@ class DirectPC:
             raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its banded Cholesky "
                              f"factor has a negative pivot in {rows.shape[0]} rows: the matrix is indefinite") from None
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
-        if self.ranks > 1 and self.kind not in BLOCKED:   # the gathered values' bytes, read here (collective)
+        if self.ranks > 1 and self.kind not in OWN:   # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
         if self.pc.getType() == "cholesky" and self.pc.getFailedReason() == PETSc.PC.FailedReason.NOERROR:
             negative = self.pc.getFactorMatrix().getInertia()[0]
@@ -150,6 +157,14 @@ class DirectPC:
             if negative:
                 raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
                                  f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
+
+    def _reduction(self, rows) -> int:
+        """PCTELESCOPE's reduction factor for 'telescope': the ranks over those that own rows, rounded up (1 for
+        any other kind; collective there)."""
+        if self.kind != "telescope":
+            return 1
+        owning = Collective(self.mat.getComm()).sum(int(rows.shape[0] > 0))
+        return -(-self.ranks // max(owning, 1))
 
     def _band(self):
         """The banded factor's context (:class:`.band.BandPC`) where it is the factor on this rank, else None."""
@@ -234,10 +249,12 @@ class DirectPC:
         """Bytes of the factor (on several ranks: of the whole matrix's values, which every rank gathers and factors;
         PCREDUNDANT does not show its factor)."""
         kind = self.pc.getType()                     # options under the prefix may have made another PC
+        if kind == "telescope":
+            return 0                                 # the telescoped HTPPC's view shows its own
         if kind in BLOCKED:
             sub = self.pc.getBJacobiSubKSP() if kind == "bjacobi" else self.pc.getASMSubKSP()
             return 8 * held(sub[0].getPC())
-        if self.ranks > 1 and self.kind not in BLOCKED:
+        if self.ranks > 1 and self.kind not in OWN:
             return self.gathered
         band = self._band()
         if band is not None:

@@ -19,7 +19,12 @@ def describe(d, overlap) -> list:
     """The lines of the :class:`.direct.DirectPC` ``d`` (``overlap``: the layers PCASM's blocks grow by)."""
     n = d.mat.getSize()[0]
     what = CHOSEN_TEXT.get(d.kind, "")
-    if d.kind in BLOCKED_TEXT:
+    if d.kind == "telescope":
+        sub = d.pc.getOptionsPrefix() or ""
+        what = "the two-level method on the ranks the rows are moved to (PCTELESCOPE, HTPPC inside)"
+        where = f" (options -{sub}telescope_htp_*; its view below)"
+        memory = "memory: the telescoped HTPPC's, below"
+    elif d.kind in BLOCKED_TEXT:
         what = BLOCKED_TEXT[d.kind].format(overlap=overlap)
         where = f" (options -{d.prefix}sub_*)"
         memory = f"memory on this rank: {d.nbytes / max(d.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
