@@ -66,6 +66,13 @@ def factor_options(kind: str, ranks: int, reduction: int = 1) -> dict:
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in GATHERED.get(kind, FACTORS[kind]).items()}}
 
 
+def reduction(mat, rows) -> int:
+    """PCTELESCOPE's reduction factor for 'telescope': ``mat``'s ranks over those that own rows (this rank's
+    ``rows``), rounded up (collective)."""
+    owning = Collective(mat.getComm()).sum(int(rows.shape[0] > 0))
+    return -(-mat.getComm().getSize() // max(owning, 1))
+
+
 class DirectPC:
     """The whole matrix factored (the interface of :class:`~petsc_htp.twolevel.composed.TwoLevelPC`).
 
@@ -129,7 +136,7 @@ class DirectPC:
         if self.ranks > 1 and self.holds is None:
             self.range = self._constant_null(rows)
         if self.pc is None:
-            factor = factor_options(self.kind, self.ranks, self._reduction(rows))
+            factor = factor_options(self.kind, self.ranks, reduction(self.mat, rows) if self.kind == "telescope" else 1)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
             if self.order is not None and self._band() is not None:
                 self._band().band, self.order = self.order, None        # the choice's order (one rank)
@@ -157,14 +164,6 @@ class DirectPC:
             if negative:
                 raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its Cholesky factor "
                                  f"has {negative} negative pivot(s) in {rows.shape[0]} rows: the matrix is indefinite")
-
-    def _reduction(self, rows) -> int:
-        """PCTELESCOPE's reduction factor for 'telescope': the ranks over those that own rows, rounded up (1 for
-        any other kind; collective there)."""
-        if self.kind != "telescope":
-            return 1
-        owning = Collective(self.mat.getComm()).sum(int(rows.shape[0] > 0))
-        return -(-self.ranks // max(owning, 1))
 
     def _band(self):
         """The banded factor's context (:class:`.band.BandPC`) where it is the factor on this rank, else None."""
