@@ -57,7 +57,7 @@ $(STAMP): pyproject.toml | system
 # solve) would compile the modules it loads anew: a fresh process's first HTPPC setup of a 65 536-row 5-point matrix
 # took 129-130 ms without the bytecode, 100-104 with it (2026-11-27, this 2-core machine).
 bytecode: setup
-	@$(VPY) -m compileall -q petsc_htp > /dev/null
+	@$(VPY) -m compileall -q petsc_htp
 
 demo: bytecode
 	$(VPY) examples/poisson_multiphase.py -n 4096 -compare -plot results/demo.png

@@ -75,7 +75,7 @@ HELP = {
                   "on several ranks gathered); "
                   "n >= 0: sparse Cholesky up to n rows; 0: "
                   "never); whatever the options where a rank owns no rows, up to 8000 rows (above: HTPPC on the ranks "
-                  "that own rows, PCTELESCOPE)",
+                  "that own rows, PCTELESCOPE, options -htp_telescope_htp_*)",
     "shift": "paper: add shift * D^-1 to M (SPD safety margin)",
     "spd_guard": "paper: Lanczos estimate of lambda_min(D^1/2 M D^1/2) at setup; if < 0, shift M to SPD",
     "threads": "BLAS, OpenMP and torch threads of this process (set process-wide at setup; -ksp_view says so; 1 "

@@ -168,9 +168,9 @@ class WholeChoice:
     def _empty_rank(self, n, coll, mine, per_row):
         """A matrix with a rank that owns no rows (this rank ``mine``), which the two-level method cannot take as it is:
         whatever the options, up to :data:`~.twolevel.sizing.REDUNDANT_MAX` rows its factor gathered on every rank
-        (Cholesky where rows hold at most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above the
-        two-level method on as many ranks as own rows, the rows moved there ('telescope', :attr:`why` saying so;
-        collective)."""
+        (Cholesky where rows hold at most ``RICH_ROW`` stored entries on average, ``per_row``, else ICC(0)), above
+        HTPPC on a subcommunicator, the rows moved there ('telescope': :mod:`.twolevel.telescope`, :attr:`why` saying
+        so; collective)."""
         from .twolevel import sizing
 
         if n <= sizing.REDUNDANT_MAX:

@@ -231,6 +231,16 @@ def case_rank_without_rows_twolevel():
     return f"{text} {getattr(ksp.getPC().getPythonContext().setup, 'kind', 'twolevel')}"
 
 
+def case_rank_without_rows_indefinite():
+    """A 2-D Laplacian of 9 216 rows less 0.5 I (indefinite, positive diagonal) on the first rank alone: the error
+    of the HTPPC on the ranks that own rows reaches every rank (the others had gone on and hung)."""
+    side = 96
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
+    A = (sp.kronsum(T, T) - 0.5 * sp.identity(side * side)).tocsr()
+    rows_on = [A.shape[0]] + [0] * (COMM.getSize() - 1)
+    return outcome(dist(A, rows_on=rows_on), np.ones(A.shape[0]))[0]
+
+
 def case_fewer_rows_than_ranks():
     """One row per rank but the last, which owns none (a 1 x 1 matrix on two ranks), with a leaf solver option set
     (on several ranks it is the leaves', not the gathered factor's: it had made a sequential ICC on the MPIAIJ)."""

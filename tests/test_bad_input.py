@@ -40,6 +40,9 @@ EXPECTED = {
     "rank_without_rows": CONVERGED,                    # on 2 ranks one factor of the whole matrix, gathered
     "rank_without_rows_large": CONVERGED,               # on 2 ranks HTPPC on the one that owns rows (PCTELESCOPE)
     "rank_without_rows_twolevel": {1: CONVERGED + r" twolevel", 2: CONVERGED + r" telescope"},
+    "rank_without_rows_indefinite": (r"error: HTPPC needs a symmetric positive \(semi\)definite matrix, but its "
+                                     r"banded Cholesky factor has a negative pivot in 9216 rows: the matrix is "
+                                     r"indefinite"),      # on 2 ranks from the rank that owns the rows, on both
     "fewer_rows_than_ranks": CONVERGED,
     "explicit_zeros": CONVERGED,
     "null_components_attached": CONVERGED,
@@ -147,3 +150,12 @@ def test_rank_without_couplings_to_others(tmp_path):
     rank that skipped the ghost scatter used to hang the others)."""
     got = run_cases(sys.executable, HERE / "bad_input_cases.py", 3, tmp_path, cases=["decoupled_rank"])
     check_outcome(got, 3, "decoupled_rank", {"decoupled_rank": CONVERGED})
+
+
+def test_ranks_without_rows_on_three_ranks(tmp_path):
+    """3 ranks, the first owning every row: HTPPC on the subcommunicator PCTELESCOPE makes converges, and its setup's
+    error reaches the two ranks outside it (they had gone on into the solve and hung)."""
+    cases = ["rank_without_rows_twolevel", "rank_without_rows_indefinite"]
+    got = run_cases(sys.executable, HERE / "bad_input_cases.py", 3, tmp_path, cases=cases)
+    check_outcome(got, 3, cases[0], {cases[0]: CONVERGED + r" telescope"})
+    check_outcome(got, 3, cases[1])

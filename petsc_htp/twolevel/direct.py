@@ -11,7 +11,8 @@ orthogonal to the component's constant, which is what a KSP with the null space 
 Cholesky factor's inertia checks that the matrix is positive (semi)definite: negative pivots are an error that says
 so. ICC(0)'s shift keeps its pivots positive, so there an indefinite matrix is named by the KSP (CG stops with
 DIVERGED_INDEFINITE_MAT or _PC). On several ranks PCREDUNDANT gathers the whole matrix on every rank and factors it
-there (also where a rank owns no rows); its factor's shift takes a singular matrix whose null space the KSP
+there (also where a rank owns no rows, up to :data:`.sizing.REDUNDANT_MAX` rows; above, HTPPC on the ranks
+that own rows: :mod:`.telescope`); its factor's shift takes a singular matrix whose null space the KSP
 removes, and its inertia is not at hand (PCREDUNDANT does not show its factor): an exact factor solves an
 indefinite matrix as well, in one iteration.
 """
@@ -22,7 +23,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from . import directview, nullspace
+from . import directview, nullspace, telescope
 from ..collective import Collective
 from .band import Band, BandPC
 from .consistency import RangeCheck
@@ -43,34 +44,24 @@ GROWN = {"pc_type": "asm", "pc_asm_type": "basic", "pc_asm_overlap": str(OVERLAP
          "sub_pc_factor_shift_type": "positive_definite"}
 BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 INCOMPLETE = ("icc", *BLOCKED)                     # kinds chosen for the iterations they save
-TELESCOPED = {"pc_type": "telescope", "telescope_pc_type": "python", "telescope_pc_python_type": "petsc_htp.HTPPC"}
-# 'telescope': where ranks own no rows, HTPPC on a subcommunicator of as many ranks as own rows (PCTELESCOPE moves
-# the rows there; its inner KSP is PREONLY)
-OWN = (*BLOCKED, "telescope")                      # kinds that are no factor gathered on every rank (PCREDUNDANT)
+OWN = (*BLOCKED, "telescope")      # kinds that are no factor gathered on every rank ('telescope': :mod:`.telescope`)
 
 
-def factor_options(kind: str, ranks: int, reduction: int = 1) -> dict:
+def factor_options(kind: str, mat, rows) -> dict:
     """The factor's PETSc options (:data:`FACTORS`); on several ranks (:data:`GATHERED` where it differs) inside
     PCREDUNDANT, which gathers the whole
     matrix on every rank (a rank that owns no rows included) and factors it there, but for 'bjacobi' (diagonally
     dominant, shifted, wide or grid-aligned rows, a graph that is no mesh): ICC(0) of each rank's diagonal block
     (:data:`BLOCKS`), for 'asm' (strongly anisotropic rows) of each rank's block grown by :data:`OVERLAP` layers,
-    additive and symmetric (:data:`GROWN`), and for 'telescope' HTPPC on every ``reduction``-th rank
-    (:data:`TELESCOPED`)."""
+    additive and symmetric (:data:`GROWN`), and for 'telescope' HTPPC on the ranks that own rows (:mod:`.telescope`);
+    ``mat`` the operator, ``rows`` this rank's (collective for 'telescope')."""
     if kind in BLOCKED:
         return dict(BLOCKED[kind])
     if kind == "telescope":
-        return {**TELESCOPED, "pc_telescope_reduction_factor": str(reduction)}
-    if ranks == 1:
+        return telescope.options(mat, rows)
+    if mat.getComm().getSize() == 1:
         return dict(FACTORS[kind])
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in GATHERED.get(kind, FACTORS[kind]).items()}}
-
-
-def reduction(mat, rows) -> int:
-    """PCTELESCOPE's reduction factor for 'telescope': ``mat``'s ranks over those that own rows (this rank's
-    ``rows``), rounded up (collective)."""
-    owning = Collective(mat.getComm()).sum(int(rows.shape[0] > 0))
-    return -(-mat.getComm().getSize() // max(owning, 1))
 
 
 class DirectPC:
@@ -85,9 +76,10 @@ class DirectPC:
     kind : str
         cholesky, band (LAPACK's banded Cholesky in its own or reverse Cuthill-McKee order, :mod:`.band`) or icc
         (:data:`FACTORS`), or bjacobi or asm
-        (ICC(0) of each rank's block, grown for asm: :func:`factor_options`).
+        (ICC(0) of each rank's block, grown for asm: :func:`factor_options`), or telescope (HTPPC on the ranks that
+        own rows: :mod:`.telescope`).
     prefix : str
-        Options prefix of the factor: ``<prefix>leaf_``.
+        Options prefix of the factor: ``<prefix>leaf_`` (of the telescope: ``<prefix>``).
     why : str, optional
         Why the whole matrix is factored (None: it is small enough).
     holds : callable, optional
@@ -107,7 +99,8 @@ class DirectPC:
 
     def __init__(self, mat, rows, kind, prefix, why=None, holds=None, made=None):
         t0 = time.perf_counter()
-        self.mat, self.kind, self.prefix, self.why, self.holds = mat, kind, prefix + "leaf_", why, holds
+        self.mat, self.kind, self.why, self.holds = mat, kind, why, holds
+        self.prefix = prefix + ("" if kind == "telescope" else "leaf_")           # (:mod:`.telescope`)
         self.trial, self.order = (None, made) if isinstance(made, Band) else (made, None)
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
@@ -136,7 +129,7 @@ class DirectPC:
         if self.ranks > 1 and self.holds is None:
             self.range = self._constant_null(rows)
         if self.pc is None:
-            factor = factor_options(self.kind, self.ranks, reduction(self.mat, rows) if self.kind == "telescope" else 1)
+            factor = factor_options(self.kind, self.mat, rows)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
             if self.order is not None and self._band() is not None:
                 self._band().band, self.order = self.order, None        # the choice's order (one rank)
@@ -148,7 +141,7 @@ class DirectPC:
         else:
             self.pc.setOperators(target, target)
         try:
-            set_up(self.pc, self.prefix, self.rest)
+            (telescope.set_up_everywhere if self.kind == "telescope" else set_up)(self.pc, self.prefix, self.rest)
         except PETSc.Error:                                    # (several ranks: BandPC's own message, as cause)
             if self._band() is None or self._band().info <= 0:
                 raise

@@ -20,9 +20,8 @@ def describe(d, overlap) -> list:
     n = d.mat.getSize()[0]
     what = CHOSEN_TEXT.get(d.kind, "")
     if d.kind == "telescope":
-        sub = d.pc.getOptionsPrefix() or ""
-        what = "the two-level method on the ranks the rows are moved to (PCTELESCOPE, HTPPC inside)"
-        where = f" (options -{sub}telescope_htp_*; its view below)"
+        what = "HTPPC on the ranks the rows are moved to (PCTELESCOPE)"
+        where = f" (options -{d.prefix}telescope_htp_*; its view below)"
         memory = "memory: the telescoped HTPPC's, below"
     elif d.kind in BLOCKED_TEXT:
         what = BLOCKED_TEXT[d.kind].format(overlap=overlap)
