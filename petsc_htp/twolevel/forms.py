@@ -51,7 +51,8 @@ class Forms:
 
     def form(self, ksp_type=None) -> str:
         """The form in use: forced, configured, or for 'auto' the one the last :meth:`presolve` chose (deflated
-        unless ``ksp_type`` is not one of :data:`DEFLATED_KSPS` or the coarse solve is one V-cycle or refined)."""
+        unless ``ksp_type`` is not one of :data:`DEFLATED_KSPS`, the coarse solve is one V-cycle or refined, or it is
+        no factor under :data:`FACTOR_ONLY_KSPS`)."""
         if self.forced or self.configured != "auto":
             return self.forced or self.configured
         return "balanced" if ksp_type is not None and ksp_type not in DEFLATED_KSPS else self.auto
