@@ -157,15 +157,16 @@ except PETSc.Error:
     A.mult(y, z)
     z.axpy(-1.0, b)
     PETSc.Sys.Print(f"refused yes, previous M {z.norm() / b.norm():.3e}")
-# an Amat other than the Pmat whose Dirichlet rows hold just the Pmat's diagonal (a copy; MatZeroRowsColumns'): started
-for amat, rhs, name in ((A.duplicate(copy=True), b, "amatcopy"), (S, c, "amatsym")):
+# an Amat other than the Pmat whose Dirichlet rows hold just the Pmat's diagonal (a copy; MatZeroRowsColumns'; the
+# MatZeroRows form beside the MatZeroRowsColumns one as Pmat): started
+for amat, pmat, rhs, name in ((A.duplicate(copy=True), A, b, "amatcopy"), (S, A, c, "amatsym"), (A, S, b, "pmatsym")):
     prefix = f"{name}_"
     for key, value in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 300,
                        "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_direct_max": 0}.items():
         PETSc.Options(prefix).setValue(key, value)
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix(prefix)
-    ksp.setOperators(amat, A)
+    ksp.setOperators(amat, pmat)
     ksp.setFromOptions()
     sol = amat.createVecRight()
     ksp.solve(rhs, sol)
