@@ -44,11 +44,12 @@ def kept_columns(P, A, previous):
     if not coll.any(not same):
         columns = previous
     else:
-        lone = check_symmetry(P, A)
+        diagonal_only = decoupled_rows(A, P.getOwnershipRange()[0])
+        lone = check_symmetry(P, diagonal_only)
         columns = KeptColumns(tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key),
                               None if lone is None else np.flatnonzero(lone), coll)
         if lone is None:                       # P's own Dirichlet rows, for an Amat that keeps their columns
-            columns.alone = np.flatnonzero(decoupled_rows(A, P.getOwnershipRange()[0]))
+            columns.alone = np.flatnonzero(diagonal_only)
     if columns.rows is not None:
         try:
             columns.refresh(P)

@@ -95,16 +95,14 @@ def check_attached(mat, coords, density) -> None:
         raise MatrixError(f"coordinates of {-widths[1]} and {widths[0]} dimensions are attached on different ranks")
 
 
-def check_symmetry(mat, rows=None):
+def check_symmetry(mat, dirichlet=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
-    but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows; ``rows``:
-    this rank's CSR rows, given on every rank or on none), return this rank's such rows (boolean:
-    :mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged symmetric
+    but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows;
+    ``dirichlet``: this rank's rows holding just their diagonal, boolean, :func:`.twolevel.aggregation.decoupled_rows`,
+    given on every rank or on none), return them (:mod:`petsc_htp.keptcolumns` drops their columns); None when
+    symmetric. A matrix flagged symmetric
     (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc keeps the
     flag through MatZeroRows. Collective."""
-    from .twolevel.aggregation import decoupled_rows
-
-    dirichlet = None if rows is None else decoupled_rows(rows, mat.getOwnershipRange()[0])
     count = Collective(mat.getComm()).sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
     known, symmetric = mat.isSymmetricKnown()
     if known and symmetric and not count:

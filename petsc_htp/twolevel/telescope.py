@@ -34,9 +34,9 @@ def named(exc) -> str:
 
 
 def set_up_everywhere(pc, prefix, rest):
-    """:func:`.inner.set_up` of the telescope ``pc`` and one application (PCTELESCOPE sets its KSP up at the first);
-    where that raised on some ranks, the error on every rank (the others raise a ValueError with its message;
-    collective)."""
+    """:func:`.inner.set_up` of the telescope ``pc`` (on several ranks: some own no rows) and one application
+    (PCTELESCOPE sets its KSP up at the first); where that raised on some ranks, the error on every rank (the others
+    raise a ValueError with its message; collective)."""
     coll, failure = Collective(pc.getComm()), None
     x, y = pc.getOperators()[0].createVecs()
     try:
@@ -48,10 +48,6 @@ def set_up_everywhere(pc, prefix, rest):
     finally:
         x.destroy()
         y.destroy()
-    if coll.mpi is None:
-        if failure is not None:
-            raise failure
-        return
     messages = [m for m in coll.mpi.allgather(None if failure is None else named(failure)) if m]
     if failure is not None:
         raise failure
