@@ -68,6 +68,7 @@ class WholeChoice:
             if kind is None and coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX:
                 kind = self._banded(A)
             return kind
+        per_row = coll.sum(np.count_nonzero(A.data)) / max(n, 1)   # a block format's stored zeros are no couplings
         if coll.size == 1 and (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(A):
             return "band"                                   # no graph walk (0.5 ms at 1000 rows)
         return self._exact(self._small(mat, A, coll, n, per_row, coords))

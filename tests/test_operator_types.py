@@ -274,3 +274,32 @@ def test_an_mpisbaij_matrix_set_from_its_upper_triangle_gets_a_true_aij_copy(ran
         assert out.returncode == 0, out.stdout + out.stderr
         found[how] = float(re.search(r"difference (\S+)", out.stdout).group(1))
     assert found["raw"] > 1.0 and found["htppc"] <= 1e-12, found
+
+
+def test_a_small_baij_operator_is_factored_as_its_aij_twin_is():
+    """A BAIJ Mat of 2x2 blocks (two uncoupled 5-point Laplacians interleaved, 7 200 rows) stores each block's zeros:
+    10 entries a row where 5 couple. The small matrix's choice counts the nonzero ones, as for its AIJ twin, and takes
+    one Cholesky factor (one iteration; counting the stored entries it took ICC(0), 33 iterations)."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (60, 60))
+    S = sp.kron(sp.kron(sp.identity(60), T) + sp.kron(T, sp.identity(60)), sp.identity(2)).tocsr()
+    S.eliminate_zeros()
+    found = {}
+    for kind in ("aij", "baij"):
+        A = PETSc.Mat().createAIJ(S.shape, csr=(S.indptr, S.indices, S.data), comm=PETSc.COMM_SELF)
+        A.setBlockSize(2)
+        A = A.convert(kind)
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setOperators(A)
+        ksp.setType("cg")
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(petsc_htp.HTPPC())
+        b, x = A.createVecs()
+        b.set(1.0)
+        ksp.solve(b, x)
+        assert ksp.getConvergedReason() > 0
+        found[A.getType()] = (ksp.getIterationNumber(), A.getInfo()["nz_used"] / S.shape[0])
+        ksp.destroy()
+        A.destroy()
+    assert found["seqbaij"][1] >= 9.5 and found["seqaij"][1] <= 5.0, found
+    assert found["seqbaij"][0] == found["seqaij"][0] == 1, found
