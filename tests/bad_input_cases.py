@@ -424,6 +424,14 @@ def case_inconsistent_twolevel():
     return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900), {"htp_direct_max": 0})[0]
 
 
+def case_shifted_to_rounding():
+    """I + 1e13 K, K the Neumann square (an implicit heat step at dt = 1e13 h^2): rows that sum to 1e-14 of their
+    entries count as summing to zero, and the error says so (GAMG reported CONVERGED_RTOL at a true relative residual
+    of 1e-6 on such a matrix)."""
+    A = (1e13 * _neumann_square() + sp.identity(900)).tocsr()
+    return outcome(dist(A), np.random.default_rng(1).standard_normal(900))[0]
+
+
 def case_inconsistent_then_attached(errors=1):
     """The inconsistent case's error (``errors`` times), then its advice on the same KSP: the null space attached, the
     same b."""
