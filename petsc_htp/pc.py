@@ -41,7 +41,7 @@ from .keptcolumns import KeptColumns, kept_columns
 from .pcoptions import HTPOptions
 from .pcview import Inspection
 from .ranksplit import crossing
-from .validation import check_attached, check_matrix, check_size
+from .validation import check_attached, check_layout, check_matrix, check_size
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows, post_solve
 from .threads import set_threads
 from .variants import variant_class
@@ -227,6 +227,7 @@ class HTPPC(Inspection):
         """Before each KSPSolve: the variant's start (the deflated form corrects x0); settings a raised solve kept
         are given back first; the context made ready for this solve (:func:`_ready`)."""
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
+        check_layout(pc.getOperators()[0], b, x)
         _ready(self, pc, ksp)
         self._changed = self.columns.start(ksp, b, x)         # x0 = D^-1 b on such rows: before the variant's
         if not self.fallback_active:

@@ -35,6 +35,23 @@ def check_size(mat) -> None:
         raise MatrixError("HTPPC got an empty matrix (0 x 0)")
 
 
+def check_layout(mat, b, x) -> None:
+    """Raise ValueError on every rank where some rank's part of the right-hand side ``b`` or the solution ``x`` of a
+    KSPSolve differs from its rows of ``mat`` (vectors made with another layout than Mat.createVecs'), naming the
+    first such rank (collective)."""
+    coll, rank = Collective(mat.getComm()), mat.getComm().getRank()
+    sizes = np.array([b.getLocalSize(), x.getLocalSize(), *mat.getLocalSize()], dtype=float)
+    bad = bool((sizes[:2] != sizes[2:]).any())
+    first = coll.min_array(np.array([rank if bad else np.inf]))[0]
+    if first == np.inf:
+        return
+    got = coll.sum_array(sizes if rank == first else np.zeros(4))
+    name, k = ("right-hand side", 0) if got[0] != got[2] else ("solution", 1)
+    raise ValueError(f"the {name} vector's layout differs from the matrix's on {coll.sum(bad)} rank(s) (rank "
+                     f"{int(first)}: {int(got[k])} local entries against {int(got[k + 2])} rows): make the vectors "
+                     f"with Mat.createVecs()")
+
+
 def check_matrix(mat, rows, empty_ok=False) -> None:
     """Raise :class:`MatrixError` on every rank when any rank's ``rows`` (its rows of ``mat``, scipy CSR with
     global columns) show a problem of :data:`PROBLEMS`, a rank without rows only where not ``empty_ok`` (collective;

@@ -561,6 +561,22 @@ def case_unknown_coarse():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse": "fancy"})[0]
 
 
+def case_vector_layout():
+    """A right-hand side whose parts differ from the matrix's rows by 5 entries (the global size alike on several
+    ranks): a named error on every rank (it had been PETSc's 'Incompatible vector local lengths' from HTPPC's start)."""
+    mat = dist(BASE.A, regions(BASE.A))
+    rows = mat.getLocalSize()[0] + (5 if COMM.getRank() == 0 else -5 if COMM.getRank() == 1 else 0)
+    b = PETSc.Vec().createMPI((rows, None if COMM.getSize() > 1 else rows), comm=COMM)
+    b.set(1.0)
+    ksp = PETSc.KSP().create(COMM)
+    ksp.setOperators(mat)
+    ksp.setType("cg")
+    ksp.getPC().setType("python")
+    ksp.getPC().setPythonType("petsc_htp.HTPPC")
+    ksp.solve(b, mat.createVecRight())
+    return "converged"
+
+
 def case_unknown_coarse_solver():
     return outcome(dist(BASE.A, regions(BASE.A)), BASE.b, {"htp_coarse_solver": "mumps"})[0]
 

@@ -59,6 +59,10 @@ EXPECTED = {
     "inconsistent_twolevel": INCONSISTENT,
     "shifted_to_rounding": INCONSISTENT[:-2] + r".*\(rows that sum to at most 1e-12 of their entries count as summing "
                                                 r"to zero: .*",
+    "vector_layout": {1: r"error: the right-hand side vector's layout differs from the matrix's on 1 rank\(s\) \(rank 0: "
+                         r"1029 local entries against 1024 rows\): make the vectors with Mat.createVecs\(\)",
+                      2: r"error: the right-hand side vector's layout differs from the matrix's on 2 rank\(s\) \(rank 0: "
+                         r"517 local entries against 512 rows\): make the vectors with Mat.createVecs\(\)"},
     "inconsistent_then_attached": CONVERGED,
     "inconsistent_three_times": CONVERGED,
     "gathered_lu_asked": CONVERGED,
