@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
+from ..collective import Collective
 from .csr import row_sums
 
 STRICT = 1e-12          # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
@@ -104,3 +105,10 @@ class RangeCheck:
             return "Mat.setNullSpace(NullSpace().create(constant=True))"
         return (f"Mat.setNullSpace(NullSpace().create(vectors=...)) with {self.k} orthonormal vectors, each constant "
                 f"on one component and zero elsewhere: the constant alone is not its null space")
+
+
+def constant_range(rows, mat) -> RangeCheck:
+    """Several ranks (nothing grounded): a :class:`RangeCheck` of the constant, which holds where every row sum of
+    ``mat`` (this rank's ``rows``) vanishes (collective)."""
+    one = np.ones(1, dtype=bool)
+    return RangeCheck(rows, np.zeros(rows.shape[0], dtype=np.int64), one, Collective(mat.getComm()))

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from .inner import held
+
 BLOCKED_TEXT = {"bjacobi": "ICC(0) of each rank's diagonal block (PCBJACOBI)",
                 "asm": "ICC(0) of each rank's block grown by {overlap} layers (PCASM, basic)"}
 CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (one iteration)",
@@ -13,6 +15,23 @@ CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (one iteration)",
                "icc": "ICC(0), whose iterations cost less here than an exact factor or the two-level method"}
 CHOSEN_TYPE = {"cholesky": "cholesky", "band": "python", "icc": "icc"}   # the PC type each choice makes
 GATHERED_TYPE, GATHERED_TEXT = {"cholesky": "lu"}, {"cholesky": "one sparse LU factor (one iteration)"}   # gathered
+
+
+def factor_bytes(d, blocked, own, band) -> int:
+    """Bytes of the factor of the :class:`.direct.DirectPC` ``d`` (``blocked``: its kinds of one ICC(0) per rank;
+    ``own``: its kinds that gather nothing; ``band``: its banded factor's context, or None). On several ranks the
+    whole matrix's values, which every rank gathers and factors (PCREDUNDANT does not show its factor)."""
+    kind = d.pc.getType()                        # options under the prefix may have made another PC
+    if kind == "telescope":
+        return 0                                 # the telescoped HTPPC's view shows its own
+    if kind in blocked:
+        sub = d.pc.getBJacobiSubKSP() if kind == "bjacobi" else d.pc.getASMSubKSP()
+        return 8 * held(sub[0].getPC())
+    if d.ranks > 1 and d.kind not in own:
+        return d.gathered
+    if band is not None:
+        return band.band.nbytes if band.band is not None else 0
+    return 8 * held(d.pc)
 
 
 def describe(d, overlap) -> list:
