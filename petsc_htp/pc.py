@@ -233,7 +233,9 @@ class HTPPC(Inspection):
         if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])
-                     or amat.handle != pmat.handle)      # M made from a Pmat other than the solved Amat
+                     or amat.handle != pmat.handle       # M made from a Pmat other than the solved Amat
+                     or (self.columns.copy is not None and not self.columns.started))   # or A without columns
+            # that the KSP's A keeps, where x_D was not set (KSPs outside keptcolumns.STARTED_KSPS)
             started = self.variant.presolve(self.setup, ksp, b, x, stale) or {}
             self._changed = {**started, **(self._changed or {})}       # the flag as the caller had it
 

@@ -30,6 +30,9 @@ from importlib import import_module
 from .twolevel.config import Config
 
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
+FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
+         "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
+                       "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
 VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
 
 
@@ -127,15 +130,15 @@ class TwoLevel:
         return self.choice.kind(mat, A, coords)
 
     def once(self, ksp, pc, setup) -> bool:
-        """Whether a solve by ``ksp`` calls for a new analysis: one that applies M once (a KSPPREONLY: PCMG's coarse
-        solve, PCFIELDSPLIT's splits) where ``setup`` is ICC(0), chosen for the iterations it saves, or another after
-        a choice made for such a KSP (a KSPReset and a new type: ICC(0) may serve again); the choice takes exact
-        factors or the two-level method while the KSP is PREONLY (:attr:`exact_only`,
+        """Whether a solve by ``ksp`` calls for a new analysis: one of :data:`FIXED` (a KSPPREONLY: PCMG's coarse
+        solve, PCFIELDSPLIT's splits; KSPRICHARDSON) where ``setup`` is ICC(0), chosen for the iterations it saves, or
+        another after a choice made for such a KSP (a KSPReset and a new type: ICC(0) may serve again); the choice
+        takes exact factors or the two-level method while the KSP is one of them (:attr:`exact_only`,
         :class:`~petsc_htp.whole.WholeChoice`). (A Pmat apart from the Amat keeps ICC(0): P = A with its diagonal x
         1.05, 16 384 rows, took it 482 CG iterations in about 240 ms, the two-level method 293 in 335-708.)"""
         made = self.choice is not None and self.choice.exact_only is not None     # the choice in use took them
-        once = ksp.getType() == "preonly"
-        self.exact_only = "applied once (KSPPREONLY)" if once else None
+        once = ksp.getType() in FIXED
+        self.exact_only = FIXED.get(ksp.getType())
         from .twolevel.direct import INCOMPLETE
 
         return (not made and getattr(setup, "kind", None) in INCOMPLETE) if once else made

@@ -40,7 +40,7 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
             twin = solves["rowscols_" + name[5:]]
             assert abs(its - twin[0]) <= 1, (name, its, twin)
             assert error <= 2 * twin[3] + 1e-13, (name, error, twin)
-    assert solves["rows_direct_cg"][0] == 1 and 10 <= solves["rows_twolevel_cg"][0] <= 30, solves
+    assert solves["rows_direct_cg"][0] <= 1 and 10 <= solves["rows_twolevel_cg"][0] <= 30, solves
     apply, transpose = map(float, re.search(r"^apply (\S+) transpose (\S+)$", text, re.M).groups())
     assert apply <= 1e-12 and transpose <= 1e-12, text
     assert float(re.search(r"^adjoint (\S+)$", text, re.M).group(1)) <= 1e-12, text

@@ -279,7 +279,7 @@ def test_an_mpisbaij_matrix_set_from_its_upper_triangle_gets_a_true_aij_copy(ran
 def test_a_small_baij_operator_is_factored_as_its_aij_twin_is():
     """A BAIJ Mat of 2x2 blocks (two uncoupled 5-point Laplacians interleaved, 7 200 rows) stores each block's zeros:
     10 entries a row where 5 couple. The small matrix's choice counts the nonzero ones, as for its AIJ twin, and takes
-    one Cholesky factor (one iteration; counting the stored entries it took ICC(0), 33 iterations)."""
+    one Cholesky factor (at most one iteration; counting the stored entries it took ICC(0), 33 iterations)."""
     T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (60, 60))
     S = sp.kron(sp.kron(sp.identity(60), T) + sp.kron(T, sp.identity(60)), sp.identity(2)).tocsr()
     S.eliminate_zeros()
@@ -302,4 +302,4 @@ def test_a_small_baij_operator_is_factored_as_its_aij_twin_is():
         ksp.destroy()
         A.destroy()
     assert found["seqbaij"][1] >= 9.5 and found["seqaij"][1] <= 5.0, found
-    assert found["seqbaij"][0] == found["seqaij"][0] == 1, found
+    assert found["seqbaij"][0] == found["seqaij"][0] <= 1, found

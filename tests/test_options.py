@@ -45,8 +45,9 @@ def test_method_file_converges(method, tiny_ckpt):
     assert code == 0, out
     assert field(out, "method").startswith(method)
     assert field(out, "converged reason").startswith("CONVERGED_"), out
-    assert float(field(out, "true relative residual ||b - A x|| / ||b||")) <= 1.01e-8
-    assert int(field(out, "iterations")) > 0
+    relres = float(field(out, "true relative residual ||b - A x|| / ||b||"))
+    assert relres <= 1.01e-8
+    assert int(field(out, "iterations")) > 0 or relres <= 1e-12     # a factor of the whole matrix starts on M b
     if method == "cg_bjacobi":
         assert "pc bjacobi/cholesky" in out
 

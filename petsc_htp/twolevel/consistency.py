@@ -20,9 +20,9 @@ from __future__ import annotations
 import numpy as np
 from petsc4py import PETSc
 
-from ..collective import Collective
 from .csr import row_sums
 
+ESTIMATE = "esteig_"     # the options prefix of KSPCHEBYSHEV's eigenvalue estimate, a KSP on the same PC
 STRICT = 1e-12          # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
 
 
@@ -79,10 +79,13 @@ class RangeCheck:
     def check(self, ksp, b):
         """Raise ValueError where ``b``'s part along the null constants exceeds ``ksp``'s tolerance
         (max(rtol ||b||, atol), PETSc's default test); nothing where no component is null, the KSP tests no norm
-        (a smoother's, PREONLY), its operator has a null space attached (the KSP removes that part) or does not
-        annihilate the constants (a regular Amat, the Pmat singular)."""
+        (a smoother's, PREONLY), is KSPCHEBYSHEV's eigenvalue estimate (prefix ``esteig_``: ten GMRES steps on a
+        noisy b, which the Chebyshev solve of a consistent b had been refused for), its operator has a null space
+        attached (the KSP removes that part) or does not annihilate the constants (a regular Amat, the Pmat
+        singular)."""
         amat = ksp.getOperators()[0]
-        if (not self.k or ksp.getNormType() == PETSc.KSP.NormType.NONE or amat.getNullSpace().handle
+        if (not self.k or ksp.getNormType() == PETSc.KSP.NormType.NONE
+                or (ksp.getOptionsPrefix() or "").endswith(ESTIMATE) or amat.getNullSpace().handle
                 or amat.getTransposeNullSpace().handle or not self._annihilated(amat)):
             return
         sums = np.bincount(self.comp, b.array_r[self.rows], minlength=self.k).astype(np.float64)   # float on every
@@ -106,9 +109,3 @@ class RangeCheck:
         return (f"Mat.setNullSpace(NullSpace().create(vectors=...)) with {self.k} orthonormal vectors, each constant "
                 f"on one component and zero elsewhere: the constant alone is not its null space")
 
-
-def constant_range(rows, mat) -> RangeCheck:
-    """Several ranks (nothing grounded): a :class:`RangeCheck` of the constant, which holds where every row sum of
-    ``mat`` (this rank's ``rows``) vanishes (collective)."""
-    one = np.ones(1, dtype=bool)
-    return RangeCheck(rows, np.zeros(rows.shape[0], dtype=np.int64), one, Collective(mat.getComm()))

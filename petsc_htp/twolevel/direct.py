@@ -23,12 +23,13 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from . import directview, nullspace, telescope
+from . import directview, exactstart, nullspace, telescope
 from ..collective import Collective
 from .band import Band, BandPC
-from .consistency import RangeCheck, constant_range
+from .consistency import RangeCheck
 from .csr import row_sums
 from .inner import configured_pc, set_up
+from .projection import Projection, gathered
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
@@ -105,7 +106,7 @@ class DirectPC:
         self.ranks = mat.getComm().getSize()
         self.n_comp, self.comp_of_row = 0, None          # the graph's components, found where grounding needs them
         self.G = self.pc = self.range = None       # range: the null constants b must not hold (:mod:`.consistency`)
-        self.project = None                         # (attached null space, work vector) where it grounded A
+        self.project = None                         # P off A's null space (:mod:`.projection`)
         self.rest, self.gathered = {}, 0
         self.age, self.times, self.null_components = 0, {}, 0
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
@@ -128,7 +129,7 @@ class DirectPC:
         self.range = None
         target = self._grounded(rows, every) if ground else self.mat
         if self.ranks > 1 and self.holds is None:
-            self.range = constant_range(rows, self.mat)
+            self.range, self.project = gathered(self.mat, rows, self.project)
         if self.pc is None:
             factor = factor_options(self.kind, self.mat, rows)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
@@ -206,7 +207,7 @@ class DirectPC:
         if not null.any():
             return self.mat
         if nsp.handle and self.project is None:
-            self.project = (nsp, self.mat.createVecLeft())
+            self.project = Projection(self.mat, nsp)
         grounded = nullspace.first_rows(self.comp_of_row, null)
         if self.G is None:
             self.G = self.mat.duplicate(copy=True)
@@ -218,22 +219,27 @@ class DirectPC:
         return self.G
 
     def mult(self, x, y):
-        """y = (grounded A)^-1 x, of x less its part along the attached null space that grounded A (:attr:`project`:
-        the KSP removes it from y, so M stays symmetric; MINRES on a Neumann square of 625-2 500 rows had stopped
-        with DIVERGED_INDEFINITE_PC, its rounding-level residual's constant part weighing in)."""
+        """y = (grounded or shifted A)^-1 x, projected off A's null space where it has one (:mod:`.projection`)."""
         if self.project is None:
             self.pc.apply(x, y)
-            return
-        x.copy(self.project[1])
-        self.project[0].remove(self.project[1])
-        self.pc.apply(self.project[1], y)
+        else:
+            self.project.apply(self.pc, x, y)
 
     def presolve(self, ksp, b, x, stale=False):
-        """Nothing to start; a named error where b holds a part along null constants the factor found
-        (:mod:`.consistency`)."""
+        """A named error where b holds a part along null constants the factor found (:mod:`.consistency`); where the
+        factor is exact and made from the KSP's operator (not ``stale``), the start x0 += M r0 (:mod:`.exactstart`;
+        not for PREONLY, which takes no guess). Returns the KSP settings to give back after the solve, or None."""
         if self.range is not None:
             self.range.check(ksp, b)
-        return None
+        if stale or ksp.getType() == PETSc.KSP.Type.PREONLY or not self._exact():
+            return None
+        return exactstart.start(ksp, b, x, self.mult)
+
+    def _exact(self) -> bool:
+        """Whether the PC made solves A: a factor (PCREDUNDANT's inner one on several ranks) or the banded one."""
+        kind = self.pc.getType()
+        kind = PETSc.Options(self.prefix).getString("redundant_pc_type", "lu") if kind == "redundant" else kind
+        return kind in ("cholesky", "lu") or self._band() is not None
 
     def check(self, probes=0) -> str:
         """Empty when the factorisation succeeded."""
@@ -257,5 +263,5 @@ class DirectPC:
                 obj.destroy()
                 setattr(self, name, None)
         if self.project is not None:
-            self.project[1].destroy()
+            self.project.destroy()
             self.project = None
