@@ -230,6 +230,20 @@ def read_csr(mat) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(data, dtype=np.float64), indices, indptr), shape=(end - start, cols))
 
 
+def gathered_rows(rows, mpi) -> sp.csr_matrix:
+    """Every rank's ``rows`` (scipy CSR, global columns; ranks in order) on every rank of the mpi4py communicator
+    ``mpi``: the whole matrix (collective)."""
+    counts, sizes = np.array(mpi.allgather(rows.nnz)), np.array(mpi.allgather(rows.shape[0]))
+    data, indices = np.empty(counts.sum()), np.empty(counts.sum(), dtype=rows.indices.dtype)
+    lengths = np.empty(sizes.sum(), dtype=rows.indptr.dtype)
+    mpi.Allgatherv(np.ascontiguousarray(rows.data, dtype=np.float64), (data, counts))
+    mpi.Allgatherv(np.ascontiguousarray(rows.indices), (indices, counts))
+    mpi.Allgatherv(np.diff(rows.indptr), (lengths, sizes))
+    indptr = np.zeros(sizes.sum() + 1, dtype=rows.indptr.dtype)
+    np.cumsum(lengths, out=indptr[1:])
+    return sp.csr_matrix((data, indices, indptr), shape=(int(sizes.sum()), rows.shape[1]))
+
+
 def _ownership_range(n, size, rank):
     """Rows owned by ``rank`` under PETSc's default (PETSC_DECIDE) split."""
     base, extra = divmod(n, size)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .collective import Collective
+from .petscmat import gathered_rows
 
 
 class WholeChoice:
@@ -71,7 +72,8 @@ class WholeChoice:
         if mat.getBlockSize() > 1:          # the stored zeros of a block format's blocks are no couplings (7 200
             per_row = coll.sum(np.count_nonzero(A.data)) / max(n, 1)  # rows of 2x2 blocks: ICC(0), 33 its, where
             # one factor served; a DMDA's boundary rows, whose zeros the rules were measured with, keep them)
-        if coll.size == 1 and (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(A):
+        if (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(
+                A if coll.size == 1 else gathered_rows(A, coll.mpi)):   # on several ranks all rows (collective)
             return "band"                                   # no graph walk (0.5 ms at 1000 rows)
         return self._exact(self._small(mat, A, coll, n, per_row, coords))
 

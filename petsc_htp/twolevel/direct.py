@@ -45,7 +45,8 @@ GROWN = {"pc_type": "asm", "pc_asm_type": "basic", "pc_asm_overlap": str(OVERLAP
          "sub_pc_factor_shift_type": "positive_definite"}
 BLOCKED = {"bjacobi": BLOCKS, "asm": GROWN}       # kinds of one ICC(0) per rank
 INCOMPLETE = ("icc", *BLOCKED)                     # kinds chosen for the iterations they save
-OWN = (*BLOCKED, "telescope")      # kinds that are no factor gathered on every rank ('telescope': :mod:`.telescope`)
+OWN = (*BLOCKED, "telescope", "band")   # kinds that PCREDUNDANT does not gather ('telescope': :mod:`.telescope`;
+# 'band': :class:`.band.BandPC` gathers the rows itself)
 
 
 def factor_options(kind: str, mat, rows) -> dict:
@@ -60,7 +61,7 @@ def factor_options(kind: str, mat, rows) -> dict:
         return dict(BLOCKED[kind])
     if kind == "telescope":
         return telescope.options(mat, rows)
-    if mat.getComm().getSize() == 1:
+    if mat.getComm().getSize() == 1 or kind == "band":
         return dict(FACTORS[kind])
     return {"pc_type": "redundant", **{"redundant_" + k: v for k, v in GATHERED.get(kind, FACTORS[kind]).items()}}
 

@@ -10,11 +10,12 @@ from .inner import held
 
 BLOCKED_TEXT = {"bjacobi": "ICC(0) of each rank's diagonal block (PCBJACOBI)",
                 "asm": "ICC(0) of each rank's block grown by {overlap} layers (PCASM, basic)"}
-CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (one iteration)",
-               "band": "one banded Cholesky factor (one iteration)",
+CHOSEN_TEXT = {"cholesky": "one sparse Cholesky factor (exact: the solve starts on x0 = M r0)",
+               "band": "one banded Cholesky factor (exact: the solve starts on x0 = M r0)",
                "icc": "ICC(0), whose iterations cost less here than an exact factor or the two-level method"}
 CHOSEN_TYPE = {"cholesky": "cholesky", "band": "python", "icc": "icc"}   # the PC type each choice makes
-GATHERED_TYPE, GATHERED_TEXT = {"cholesky": "lu"}, {"cholesky": "one sparse LU factor (one iteration)"}   # gathered
+GATHERED_TYPE = {"cholesky": "lu"}                     # several ranks: the gathered factor's PC and words
+GATHERED_TEXT = {"cholesky": "one sparse LU factor (exact: the solve starts on x0 = M r0)"}
 
 
 def factor_bytes(d, blocked, own, band) -> int:
@@ -46,7 +47,7 @@ def describe(d, overlap) -> list:
         what = BLOCKED_TEXT[d.kind].format(overlap=overlap)
         where = f" (options -{d.prefix}sub_*)"
         memory = f"memory on this rank: {d.nbytes / max(d.mat.getLocalSize()[0], 1):.0f} bytes per unknown"
-    elif d.ranks > 1:
+    elif d.ranks > 1 and d.kind != "band":
         chosen = GATHERED_TYPE.get(d.kind, CHOSEN_TYPE[d.kind])
         what = GATHERED_TEXT.get(d.kind, what)
         asked = PETSc.Options(d.prefix).getString("redundant_pc_type", chosen)
