@@ -51,8 +51,7 @@ def describe(d, overlap) -> list:
         chosen = GATHERED_TYPE.get(d.kind, CHOSEN_TYPE[d.kind])
         what = GATHERED_TEXT.get(d.kind, what)
         asked = PETSc.Options(d.prefix).getString("redundant_pc_type", chosen)
-        factor = ("LAPACK's band, in its own or reverse Cuthill-McKee order" if d.kind == "band" else
-                  f"{chosen}, {d.ordering} ordering")
+        factor = f"{chosen}, {d.ordering} ordering"
         if asked != chosen:                           # (PCREDUNDANT's inner PC has no getter in petsc4py)
             what = f"PETSc's {asked}, as -{d.prefix}redundant_pc_type asks (chosen: {what})"
             factor = asked
