@@ -63,6 +63,7 @@ EXPECTED = {
                          r"1029 local entries against 1024 rows\): make the vectors with Mat.createVecs\(\)",
                       2: r"error: the right-hand side vector's layout differs from the matrix's on 2 rank\(s\) \(rank 0: "
                          r"517 local entries against 512 rows\): make the vectors with Mat.createVecs\(\)"},
+    "singular_then_regular": CONVERGED,
     "inconsistent_then_attached": CONVERGED,
     "inconsistent_three_times": CONVERGED,
     "gathered_lu_asked": CONVERGED,
@@ -94,7 +95,8 @@ EXPECTED = {
     "unknown_aggregation": r"error: -htp_aggregation 'triples' unknown; use one of auto, standard, pairs",
 }
 # setups after the case's last solve: (analyses, numeric steps) of the one PC it reused
-SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2"), "rescaled_values": ("1", "3")}
+SETUPS = {"pattern_change": ("2", "2"), "values_only": ("1", "2"), "rescaled_values": ("1", "3"),
+          "singular_then_regular": ("1", "2")}
 # the most iterations a converged case may take (none: no bound)
 MAX_ITS = {"rescaled_values": 40, "chain": 40, "tiny_entries": 40, "penalty_rows": 40, "jumps3d": 40,
            "null_vector_attached": 40, "loose_coarse_cycles": 120,

@@ -266,3 +266,34 @@ def test_two_ranks_gather_the_band():
     assert "banded Cholesky (LAPACK dpbtrf)" in out.stdout and "gathered and factored on each of the 2 ranks" in out.stdout
     assert re.search(r"^iterations: 0$", out.stdout, re.M), out.stdout
     assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1e-10
+
+
+@pytest.mark.parametrize("ksp_type", ["richardson", "cg"])
+def test_a_test_against_the_initial_residual_takes_no_start(ksp_type):
+    """-ksp_converged_use_initial_residual_norm measures against ||r0||, which the exact factor's start leaves at
+    rounding: no start then (Richardson had run to its iteration limit on an exact x)."""
+    import petsc_htp
+
+    A, b = foreign.dmda(2, 30, 1e3, 0)
+    A = sp.csr_matrix(A)
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+    prefix = f"uir_{ksp_type}_"
+    PETSc.Options(prefix).setValue("ksp_converged_use_initial_residual_norm", True)
+    try:
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setOptionsPrefix(prefix)
+        ksp.setOperators(mat)
+        ksp.setType(ksp_type)
+        ksp.setTolerances(rtol=1e-8, max_it=100)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(petsc_htp.HTPPC())
+        ksp.setFromOptions()
+        x, rhs = mat.createVecs()
+        rhs.setArray(b)
+        ksp.solve(rhs, x)
+    finally:
+        PETSc.Options(prefix).delValue("ksp_converged_use_initial_residual_norm")
+    assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 2, ksp.getConvergedReason()
+    assert np.linalg.norm(b - A @ x.getArray()) <= 1e-8 * np.linalg.norm(b)
+    ksp.destroy()
+    mat.destroy()

@@ -29,7 +29,7 @@ from .band import Band, BandPC
 from .consistency import RangeCheck
 from .csr import row_sums
 from .inner import configured_pc, set_up
-from .projection import Projection, gathered
+from .projection import Projection, drop, gathered
 
 FACTORS = {"cholesky": {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "nd", "pc_factor_shift_type": "nonzero"},
            "icc": {"pc_type": "icc", "pc_factor_mat_ordering_type": "natural",
@@ -127,10 +127,10 @@ class DirectPC:
         KSP's null space and the factor's shift take a singular matrix)."""
         t0 = time.perf_counter()
         ground = self.ranks == 1 and (self.holds is None or every)     # see holds: chosen for a regular matrix
-        self.range = None
+        self.range, self.project = None, drop(self.project)           # new values may have lost the null space
         target = self._grounded(rows, every) if ground else self.mat
         if self.ranks > 1 and self.holds is None:
-            self.range, self.project = gathered(self.mat, rows, self.project)
+            self.range, self.project = gathered(self.mat, rows)
         if self.pc is None:
             factor = factor_options(self.kind, self.mat, rows)
             self.pc, self.rest = self._adopted(target) or configured_pc(self.mat.getComm(), target, self.prefix, factor)
@@ -149,7 +149,7 @@ class DirectPC:
             if self._band() is None or self._band().info <= 0:
                 raise
             raise ValueError(f"HTPPC needs a symmetric positive (semi)definite matrix, but its banded Cholesky "
-                             f"factor has a negative pivot in {rows.shape[0]} rows: the matrix is indefinite") from None
+                             f"factor has a negative pivot in {self.mat.getSize()[0]} rows: the matrix is indefinite") from None
         self.times = {"factor": 1e3 * (time.perf_counter() - t0)}
         if self.ranks > 1 and self.kind not in OWN:   # the gathered values' bytes, read here (collective)
             self.gathered = int(8 * self.mat.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
@@ -207,7 +207,7 @@ class DirectPC:
         self.null_components = int(null.sum())
         if not null.any():
             return self.mat
-        if nsp.handle and self.project is None:
+        if nsp.handle:
             self.project = Projection(self.mat, nsp)
         grounded = nullspace.first_rows(self.comp_of_row, null)
         if self.G is None:
@@ -263,6 +263,4 @@ class DirectPC:
             if obj is not None:
                 obj.destroy()
                 setattr(self, name, None)
-        if self.project is not None:
-            self.project.destroy()
-            self.project = None
+        self.project = drop(self.project)
