@@ -32,9 +32,7 @@ from .twolevel.config import Config
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
-                       "above 2 makes diverge",  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
-         "chebyshev": "applied by a polynomial fixed by eigenvalue estimates (KSPCHEBYSHEV), which ICC(0) of each "
-                      "rank's block throws off"}  # (3-D DMDA, 1 500 rows, 2 ranks: NaN, as PETSc's PCBJACOBI's)
+                       "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
 VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
 
 
@@ -128,7 +126,7 @@ class TwoLevel:
         (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective)."""
         from .whole import WholeChoice
 
-        self.choice = WholeChoice(self.opts, self.exact_only, self.prefix)
+        self.choice = WholeChoice(self.opts, self.exact_only)
         return self.choice.kind(mat, A, coords)
 
     def once(self, ksp, pc, setup) -> bool:

@@ -28,9 +28,8 @@ class WholeChoice:
     operator, and one application of it is no solve (PCMG's 9-point coarse level of 4 225 rows: 31 outer CG
     iterations, 8 with its Cholesky; PCFIELDSPLIT's shifted split of 66 049 rows: 2 945 FGMRES iterations, 204)."""
 
-    def __init__(self, opts, exact_only=None, prefix=""):
+    def __init__(self, opts, exact_only=None):
         self.opts, self.why, self.holds, self.made, self.exact_only = opts, None, None, None, exact_only
-        self.prefix = prefix                    # HTPPC's options prefix
 
     def take_made(self):
         """What the choice made that the factor takes, or None, handed over once: the ICC(0) trial's PC, set up on the
@@ -76,18 +75,7 @@ class WholeChoice:
         if (per_row <= sizing.RICH_ROW or coords is not None) and self._banded(
                 A if coll.size == 1 else gathered_rows(A, coll.mpi)):   # on several ranks all rows (collective)
             return "band"                                   # no graph walk (0.5 ms at 1000 rows)
-        kind = self._exact(self._small(mat, A, coll, n, per_row, coords))
-        return "bjacobi" if kind == "icc" and coll.size > 1 and not self._gathered_asked() else kind
-
-    def _gathered_asked(self) -> bool:
-        """Whether an option asks for the gathered factor's PC (``-htp_leaf_redundant_pc_type``). Else ICC(0) of a small
-        matrix on several ranks is each rank's block's (PCBJACOBI): on 2 ranks at 1 000-8 000 rows (P1 triangles and
-        tetrahedra, 3-D DMDA, rotated anisotropy) 1.2-22.8 against 1.8-28.8 ms gathered by PCREDUNDANT, in 1.1-5.4
-        times the iterations; rotated anisotropy at 8 000 rows 10.3-10.5 against 7.6-10.9
-        (``results/sweep-20261127e/bjacobi.txt``, two rounds)."""
-        from petsc4py import PETSc
-
-        return PETSc.Options(self.prefix + "htp_leaf_").hasName("redundant_pc_type")
+        return self._exact(self._small(mat, A, coll, n, per_row, coords))
 
     def _exact(self, kind):
         """``kind``, or where ICC(0) does not serve (:attr:`exact_only`) the exact factor in place of ICC(0),

@@ -1087,8 +1087,8 @@ def test_the_matrix_file_example_loads_what_it_wrote_on_two_ranks(tmp_path):
         assert "WARNING: leaves hold one rank's rows, so a split that cuts this many" in proc.stdout, proc.stdout
         found.append(its)
     assert found[0] == found[1]
-    small = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS)    # each rank's ICC(0): no leaves
-    assert small.returncode == 0 and "ICC(0) of each rank's diagonal block (PCBJACOBI)" in small.stdout, small.stdout
+    small = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS)    # the gathered factor: no leaves
+    assert small.returncode == 0 and "gathered and factored on each of the 2 ranks" in small.stdout, small.stdout
     assert "join rows of two ranks" not in small.stdout, small.stdout
     asked = _mpirun(2, script, "-case", "fem_tri", "-n", "2000", *HTPPC_FLAGS, "-htp_leaf_redundant_pc_type", "cholesky")
     want = "whole matrix: PETSc's cholesky, as -htp_leaf_redundant_pc_type asks"
