@@ -133,7 +133,8 @@ class BandPC:
 
     def __init__(self):
         self.band, self.info, self.grounded = None, 0, np.zeros(0, dtype=np.int64)
-        self.mpi, self.sizes, self.start = None, None, 0       # several ranks: the rows each owns, this one's first
+        self.mpi, self.sizes, self.start, self.work = None, None, 0, None   # several ranks: the rows each owns,
+        # this one's first, work arrays
 
     def setUp(self, pc):
         """Order (on a new pattern) and factor the operator's values (collective)."""
@@ -145,6 +146,7 @@ class BandPC:
             rows = mine if self.mpi is None else gathered_rows(mine, self.mpi)
             if self.mpi is not None:
                 self.sizes, self.start = np.array(self.mpi.allgather(mine.shape[0])), mat.getOwnershipRange()[0]
+                self.work = np.empty(rows.shape[0]), np.empty(rows.shape[0])   # the gathered x and the solve
             if self.band is None or not self.band.same(rows):
                 self.band = Band(rows)
             self.info, self.grounded = self.band.factor(rows.data)
@@ -161,7 +163,7 @@ class BandPC:
         if self.mpi is None:
             self.band.solve(x.array_r, y.array_w)
             return
-        whole, out = np.empty(self.band.shape[1]), np.empty(self.band.shape[1])
+        whole, out = self.work
         self.mpi.Allgatherv(np.ascontiguousarray(x.array_r), (whole, self.sizes))
         self.band.solve(whole, out)
         y.array_w[...] = out[self.start:self.start + y.getLocalSize()]

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from .consistency import ESTIMATE
+
 UNSTARTED = ("richardson", "chebyshev")
 INITIAL = ("ksp_converged_use_initial_residual_norm", "ksp_converged_use_min_initial_residual_norm")
 
@@ -20,35 +22,47 @@ def wanted(ksp) -> bool:
     """Whether a solve by ``ksp`` takes the start."""
     prefix = ksp.getOptionsPrefix() or ""
     db = PETSc.Options(prefix)
-    return not (ksp.getType() in UNSTARTED or prefix.endswith("esteig_") or any(db.getBool(k, False) for k in INITIAL))
+    return not (ksp.getType() in UNSTARTED or prefix.endswith(ESTIMATE) or any(db.getBool(k, False) for k in INITIAL))
 
 
-def start(ksp, b, x, apply) -> dict:
-    """x += M (b - A x) (x = M b where ``ksp`` starts from zero), M being ``apply`` (y = M x), A the KSP's Amat, the
-    residual without its part along A's transpose null space (KSPSolve projects b only after this call), the step
-    without its part along A's null space; the KSP then starts from x. Returns the settings changed, to give back
-    after the solve ({'guess': the initial-guess flag}), or None where the KSP takes none (:func:`wanted`)."""
+def residual(ksp, b, x, r) -> bool:
+    """r = b - A x (A the KSP's Amat; r = b and x = 0 where ``ksp`` starts from zero) without its part along A's
+    transpose null space (KSPSolve projects b only after the presolve); returns the KSP's initial-guess flag. The
+    first half of a start, this one's and the deflated form's (:meth:`.forms.Forms.presolve`)."""
+    nonzero = ksp.getInitialGuessNonzero()
+    if nonzero:
+        ksp.getOperators()[0].mult(x, r)
+        r.aypx(-1.0, b)
+    else:
+        b.copy(r)
+        x.set(0.0)
+    nsp = ksp.getOperators()[0].getTransposeNullSpace()
+    if nsp.handle:
+        nsp.remove(r)
+    return nonzero
+
+
+def advance(ksp, x, v, nonzero) -> dict:
+    """x += v less its part along A's null space (a start adds no null component; a guess keeps its own), the KSP
+    then starting from x; returns the settings to give back after the solve ({'guess': the flag ``nonzero``})."""
+    null = ksp.getOperators()[0].getNullSpace()
+    if null.handle:
+        null.remove(v)
+    x.axpy(1.0, v)
+    ksp.setInitialGuessNonzero(True)
+    return {"guess": nonzero}
+
+
+def start(ksp, b, x, apply):
+    """x += M (b - A x) (:func:`residual`, :func:`advance`), M being ``apply`` (y = M x); the settings to give back
+    after the solve, or None where the KSP takes no start (:func:`wanted`)."""
     if not wanted(ksp):
         return None
-    nonzero, amat = ksp.getInitialGuessNonzero(), ksp.getOperators()[0]
-    r, v = amat.createVecs()
+    r, v = ksp.getOperators()[0].createVecs()
     try:
-        if nonzero:
-            amat.mult(x, r)
-            r.aypx(-1.0, b)
-        else:
-            b.copy(r)
-            x.set(0.0)
-        nsp = amat.getTransposeNullSpace()
-        if nsp.handle:
-            nsp.remove(r)
+        nonzero = residual(ksp, b, x, r)
         apply(r, v)
-        null = amat.getNullSpace()
-        if null.handle:
-            null.remove(v)
-        x.axpy(1.0, v)
+        return advance(ksp, x, v, nonzero)
     finally:
         r.destroy()
         v.destroy()
-    ksp.setInitialGuessNonzero(True)
-    return {"guess": nonzero}

@@ -18,6 +18,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..events import event
+from .exactstart import advance, residual
 
 # Krylov methods that take the deflated form with its start (x0 += Q r0): checked on the foreign study's 2-D DMDA
 # matrix, each to rtol 1e-8 in the true residual. Any other takes the balanced form, a fixed SPD operator: those that
@@ -171,17 +172,9 @@ class Forms:
                 self.ops.need_F()
         if self.form(kind) != "deflated" or kind == PETSc.KSP.Type.PREONLY:
             return None
-        nonzero, t, cs = ksp.getInitialGuessNonzero(), self.t, self.coarse
+        t, cs = self.t, self.coarse
         amat = ksp.getOperators()[0]    # not stale: the matrix M was made from, or A without the Dirichlet rows'
-        if nonzero:                     # columns (:mod:`petsc_htp.keptcolumns`), whose x0 there is then exact
-            amat.mult(x, t)
-            t.aypx(-1.0, b)
-        else:
-            b.copy(t)
-            x.set(0.0)
-        nsp = ksp.getOperators()[0].getTransposeNullSpace()
-        if nsp:                       # KSPSolve projects b only after this call: start on the projected residual
-            nsp.remove(t)
+        nonzero = residual(ksp, b, x, t)   # columns (:mod:`petsc_htp.keptcolumns`), whose x0 there is then exact
         before = t.norm()
         self.ops.W.multTranspose(t, cs.g)
         rtol, atol = ksp.getTolerances()[:2]
@@ -191,13 +184,8 @@ class Forms:
         finally:
             self._coarse_ev.end()
         self.ops.W.mult(cs.c, self.v)
-        null = ksp.getOperators()[0].getNullSpace()
-        if null.handle:                 # the start adds no null component (CG from zero keeps none: a Neumann
-            null.remove(self.v)         # solution had kept an offset of 0.27; a guess keeps its own)
-        x.axpy(1.0, self.v)
-        ksp.setInitialGuessNonzero(True)
-        self.started = True
-        changed, divtol = {"guess": nonzero}, ksp.getTolerances()[2]
+        changed = advance(ksp, x, self.v, nonzero)    # no null component (CG from zero keeps none: a Neumann
+        self.started, divtol = True, ksp.getTolerances()[2]   # solution had kept an offset of 0.27)
         if ksp.getNormType() == PETSc.KSP.NormType.UNPRECONDITIONED and divtol > 0 and before > 0:
             self.ops.W.mult(cs.c, self.v)
             self.v.scale(-1.0)
