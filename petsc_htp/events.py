@@ -17,6 +17,7 @@ EVENTS = {"HTPSetup": "setup of the preconditioner (analysis when the pattern ch
           "HTPLeafFactor": "numeric factorisation of the leaf blocks",
           "HTPCoarseSpace": "the coarse vectors of every leaf",
           "HTPProducts": "C = O W and the Galerkin coarse operator E = W^T A W",
+          "HTPLevels": "the multilevel variant's levels: leaves, smoothed coarse spaces, Galerkin operators",
           "HTPCoarseFactor": "set-up of the coarse solver (its factorisation or multigrid hierarchy)",
           "HTPApply": "one application y = M x",
           "HTPLeafSolve": "the leaf solve of an application",

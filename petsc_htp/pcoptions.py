@@ -21,7 +21,8 @@ PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "aggregation", 
                   "block_size")
 
 HELP = {
-    "variant": "paper (the paper's H-matrix M) or twolevel (exact leaf solves + coarse space, SPD, float64)",
+    "variant": "paper (the paper's H-matrix M), twolevel (exact leaf solves + coarse space, SPD, float64) or "
+               "multilevel (leaf solves smoothing every level of an aggregation hierarchy; options -htp_ml_*)",
     "checkpoint": "HTP checkpoint file (empty: the shipped petsc_htp/checkpoints/htp_default.pt)",
     "device": "torch device for the network and the apply: cpu, cuda[:k] or auto",
     "ordering": "auto (Morton with coordinates, else RCM for paper and aggregation for twolevel), aggregation "
@@ -149,7 +150,7 @@ class HTPOptions:
     @property
     def probes(self) -> int:
         """Rayleigh probes at setup: ``probe``, or the variant's default for -1."""
-        return self.probe if self.probe >= 0 else {"paper": 4, "twolevel": 0}[self.variant]
+        return self.probe if self.probe >= 0 else {"paper": 4}.get(self.variant, 0)
 
     def pattern_key(self) -> tuple:
         """The options a new analysis depends on."""

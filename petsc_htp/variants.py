@@ -33,7 +33,8 @@ TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
                        "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
-VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "paper": ("petsc_htp.paper.variant", "Paper")}
+VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "multilevel": ("petsc_htp.multilevel.variant", "Multilevel"),
+            "paper": ("petsc_htp.paper.variant", "Paper")}
 
 
 def require_torch(what: str):
@@ -101,11 +102,15 @@ class TwoLevel:
             c = self.choice
             setup = DirectPC(mat, A, kind, self.prefix + "htp_", c.why, c.holds, c.take_made())
         else:
-            from .twolevel.composed import TwoLevelPC
-
-            setup = TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+            setup = self.composed(mat, A, coords)
         setup.analysis_ms += times["choice"]           # -ksp_view's analysis: the choice (a trial) included
         return setup
+
+    def composed(self, mat, A, coords):
+        """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`)."""
+        from .twolevel.composed import TwoLevelPC
+
+        return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
 
     def _followed(self, mat, A, coords):
         """``coords``, or None where coupled rows lie far apart in them (:mod:`.twolevel.coordcheck`: coordinates

@@ -1,0 +1,100 @@
+"""PETSc's PCMG on a :class:`~.hierarchy.Hierarchy`: the V-cycle, its smoothers and its coarse solve.
+
+Options under ``<prefix>`` (HTPPC's ``-htp_ml_``) are PCMG's own: ``-htp_ml_pc_mg_cycle_type w``,
+``-htp_ml_mg_levels_ksp_type``, ``-htp_ml_mg_coarse_pc_type`` and so on; the user's win over the defaults below.
+"""
+from __future__ import annotations
+
+from petsc4py import PETSc
+
+from ..twolevel.inner import scoped, set_up
+
+DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s B^-1 A down to this
+LANCZOS_STEPS = 10      # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
+SAFETY = 1.1            # ... and the factor on CG's estimate
+SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
+LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},
+              2: {"pc_type": "bjacobi", "sub_pc_type": "cholesky", "sub_pc_factor_mat_ordering_type": "natural",
+                  "sub_pc_factor_shift_type": "nonzero"}}
+COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_type": "nd",
+              "pc_factor_shift_type": "nonzero"},
+          2: {"ksp_type": "preonly", "pc_type": "redundant", "redundant_pc_type": "lu",
+              "redundant_pc_factor_mat_ordering_type": "nd", "redundant_pc_factor_shift_type": "nonzero"}}
+
+
+def multigrid(hierarchy, prefix, damping=DAMPING):
+    """A PCMG (set up) running V-cycles on ``hierarchy`` under the options ``prefix``; returns (the PC, the
+    Richardson scale of each smoothed level, finest first). The down and up smoothers of a level are two KSPs
+    sharing one PC (one factor): the down one starts from zero, so it needs no product with A
+    (PCMG's distinct up smoother)."""
+    ops = hierarchy.operators()
+    comm = ops[0].getComm()
+    ranks = 1 if comm.getSize() == 1 else 2
+    pc = PETSc.PC().create(comm)
+    try:
+        pc.setOptionsPrefix(prefix)
+        pc.setOperators(ops[0], ops[0])
+        pc.setType(PETSc.PC.Type.MG)
+        count = len(ops)
+        pc.setMGLevels(count)
+        pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
+        with scoped(prefix, {"pc_mg_distinct_smoothup": "true"}):
+            pc.setFromOptions()
+        for level in range(1, count):
+            pc.setMGInterpolation(level, hierarchy.levels[count - 1 - level].W)
+        coarse = pc.getMGCoarseSolve()
+        coarse.setOperators(ops[-1], ops[-1])
+        _configured(coarse, COARSE[ranks])
+        for level in range(1, count):
+            mine = hierarchy.levels[count - 1 - level]
+            down, up = pc.getMGSmootherDown(level), pc.getMGSmootherUp(level)
+            down.setOperators(mine.A, mine.B)
+            _configured(down, {**SMOOTHER, **LEAF_SOLVE[ranks]})
+            if up.handle != down.handle:
+                up.setPC(down.getPC())
+                up.setOperators(mine.A, mine.B)
+                _configured(up, SMOOTHER)
+        set_up(coarse.getPC(), coarse.getOptionsPrefix(), {})
+        pc.setUp()
+        scales = [_damped(pc, level, damping) for level in range(count - 1, 0, -1)]
+    except Exception:
+        pc.destroy()
+        raise
+    return pc, scales
+
+
+def _configured(ksp, defaults):
+    """``ksp`` with ``defaults`` (options under its prefix where the user set none), then its options."""
+    with scoped(ksp.getOptionsPrefix(), defaults):
+        ksp.setFromOptions()
+
+
+def _damped(pc, level, damping) -> float:
+    """The Richardson scale min(1, ``damping`` / lambda), lambda the largest eigenvalue of B^-1 A (Lanczos: CG's
+    extreme singular values after :data:`LANCZOS_STEPS` steps from a random b, times :data:`SAFETY`), given to the
+    smoothers of ``level`` of ``pc`` unless the user set one; returns the down smoother's scale (1 for another KSP)."""
+    smoother = pc.getMGSmootherDown(level)
+    if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
+        return 1.0
+    A = smoother.getOperators()[0]
+    est = PETSc.KSP().create(A.getComm())
+    b, x = A.createVecs()
+    try:
+        est.setOperators(A, A)
+        est.setPC(smoother.getPC())
+        est.setType(PETSc.KSP.Type.CG)
+        est.setNormType(PETSc.KSP.NormType.NONE)
+        est.setTolerances(rtol=0.0, atol=0.0, max_it=LANCZOS_STEPS)
+        est.setConvergenceTest(lambda *args: 0)
+        est.setComputeSingularValues(True)
+        b.setRandom()
+        est.solve(b, x)
+        top = SAFETY * est.computeExtremeSingularValues()[0]
+    finally:
+        for obj in (b, x, est):
+            obj.destroy()
+    scale = min(1.0, damping / top) if top > 0 else 1.0
+    for ksp in {smoother.handle: smoother, pc.getMGSmootherUp(level).handle: pc.getMGSmootherUp(level)}.values():
+        with scoped(ksp.getOptionsPrefix(), {"ksp_richardson_scale": str(scale)}):
+            ksp.setFromOptions()
+    return PETSc.Options(smoother.getOptionsPrefix()).getReal("ksp_richardson_scale", scale)

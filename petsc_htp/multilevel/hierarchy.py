@@ -1,0 +1,47 @@
+"""The levels from the finest operator down to one small enough for a sparse LU."""
+from __future__ import annotations
+
+from petsc4py import PETSc
+
+from .level import JACOBI, PASSES, Level
+
+COARSE_MAX = 1000       # rows of the coarsest operator, solved by one LU
+MAX_LEVELS = 12         # levels at most, the coarsest included
+STALL = 0.8             # a level that keeps more than this share of its rows as coarse vectors ends the hierarchy
+
+
+class Hierarchy:
+    """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last."""
+
+    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, passes=PASSES):
+        self.levels = []
+        self.coarsest = A
+        while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
+            level = Level(self.coarsest, jacobi, passes if not self.levels else PASSES)
+            n, k = level.W.getSize()
+            if k == 0 or k > STALL * n:
+                level.destroy()
+                break
+            self.levels.append(level)
+            self.coarsest = level.coarse()
+
+    def operators(self) -> list:
+        """Each level's operator, then the coarsest."""
+        return [level.A for level in self.levels] + [self.coarsest]
+
+    def rows(self) -> list:
+        """Global rows of :meth:`operators`."""
+        return [A.getSize()[0] for A in self.operators()]
+
+    def complexity(self) -> float:
+        """Stored entries of all operators over the finest's (the operator complexity)."""
+        nnz = [A.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"] for A in self.operators()]
+        return sum(nnz) / nnz[0]
+
+    def destroy(self):
+        """Free every level's matrices and the coarse operators (not the finest)."""
+        for A in self.operators()[1:]:
+            A.destroy()
+        for level in self.levels:
+            level.destroy()
+        self.levels, self.coarsest = [], None

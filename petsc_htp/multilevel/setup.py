@@ -1,0 +1,107 @@
+"""The multilevel variant's setup (the interface of :class:`~petsc_htp.twolevel.composed.TwoLevelPC`): its
+hierarchy and V-cycle, made anew for new values (the leaves of every level follow the couplings)."""
+from __future__ import annotations
+
+import time
+
+from petsc4py import PETSc
+
+from ..events import phase
+from ..twolevel.inner import held
+from . import cycle
+from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
+from .level import JACOBI, PASSES
+
+
+class MultilevelPC:
+    """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` under the options ``prefix`` + ``ml_`` (PCMG's, and
+    ``coarse_max``, ``max_levels``, ``damping``: :mod:`.hierarchy`, :mod:`.cycle`)."""
+
+    whole = False
+
+    def __init__(self, mat, rows, prefix):
+        t0 = time.perf_counter()
+        self.mat, self.prefix = mat, prefix + "ml_"
+        db = PETSc.Options(self.prefix)
+        self.coarse_max = db.getInt("coarse_max", COARSE_MAX)
+        self.max_levels = db.getInt("max_levels", MAX_LEVELS)
+        self.damping = db.getReal("damping", cycle.DAMPING)
+        self.jacobi = db.getReal("jacobi", JACOBI)
+        self.passes = db.getInt("passes", PASSES)
+        if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2:
+            raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1 and "
+                             f"-{self.prefix}damping in (0, 2); got {self.coarse_max}, {self.max_levels}, "
+                             f"{self.damping}")
+        self.hierarchy = self.pc = None
+        self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, None, None, None
+        self.analysis_ms = 1e3 * (time.perf_counter() - t0)
+
+    def numeric(self, rows, density=None, keep_space=False):
+        """The hierarchy and its V-cycle for the operator's new values."""
+        self._free()
+        self.times = {}
+        with phase("HTPLevels", self.times, "levels"):
+            self.hierarchy = Hierarchy(self.mat, self.coarse_max, self.max_levels, self.jacobi, self.passes)
+        with phase("HTPCoarseFactor", self.times, "cycle"):
+            self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping)
+
+    def moved(self, rows, penalty=None) -> bool:
+        """False: each numeric step makes its leaves anew."""
+        return False
+
+    def mult(self, x, y):
+        """y = one V-cycle applied to x."""
+        self.pc.apply(x, y)
+
+    @staticmethod
+    def presolve(ksp, b, x, stale=False):
+        """No start: the KSP's own guess."""
+        return None
+
+    def solved(self, its, seconds):
+        """Keep the last solve's iterations and ms per iteration."""
+        self.its, self.ms_per_it = its, 1e3 * seconds / max(its, 1)
+
+    def inner_pcs(self) -> dict:
+        """The PCMG."""
+        return {} if self.pc is None else {"multigrid": self.pc}
+
+    def check(self, probes=0) -> str:
+        """Empty when the V-cycle's set-up succeeded."""
+        reason = self.pc.getFailedReason()
+        return "" if reason == PETSc.PC.FailedReason.NOERROR else f"the multigrid set-up failed ({reason})"
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes this rank holds besides the operator: coarse operators, coarse spaces, leaf factors (12 per
+        entry)."""
+        total = held(self.pc)
+        for level in range(1, self.pc.getMGLevels()):
+            total += held(self.pc.getMGSmoother(level).getPC())
+        coarse = self.pc.getMGCoarseSolve().getPC()
+        return 12 * (total + (held(coarse) if coarse.getType() != "redundant" else 0))
+
+    def describe(self) -> list:
+        """Lines for ``-ksp_view``."""
+        h, t = self.hierarchy, self.times
+        rows = " -> ".join(str(n) for n in h.rows())
+        leaves = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
+        scales = ", ".join(f"{s:.2f}" for s in self.scales)
+        return [f"levels: {len(h.rows())}, rows {rows} (coarse LU up to {self.coarse_max} rows); "
+                f"operator complexity {h.complexity():.2f}",
+                f"leaves: aggregation, rows per coarse vector {leaves or 'none'}; coarse vectors: the leaf "
+                f"constants smoothed by one Jacobi step; smoother: one Richardson step with the leaf blocks' "
+                f"exact solves, scaled {scales or '-'} (largest eigenvalue of s B^-1 A taken to {self.damping:g})",
+                f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*",
+                f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
+
+    def _free(self):
+        if self.pc is not None:
+            self.pc.destroy()
+        if self.hierarchy is not None:
+            self.hierarchy.destroy()
+        self.pc = self.hierarchy = None
+
+    def destroy(self):
+        """Free the V-cycle and the hierarchy."""
+        self._free()

@@ -1,0 +1,109 @@
+"""The multilevel variant (``-htp_variant multilevel``): its levels, its V-cycle's convergence on foreign matrices
+(singular ones too), its options and view, and two ranks."""
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from petsc_htp.bench.foreigncases import CASES
+from petsc_htp.multilevel.hierarchy import Hierarchy
+from petsc_htp.multilevel.level import Level
+from test_foreign import lines, solve
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _mat(A):
+    return PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)
+
+
+def test_a_level_keeps_its_leaves_apart_and_its_coarse_vectors_sum_to_one():
+    """The leaf-block matrix holds exactly the entries within a leaf; the smoothed coarse vectors still sum to one
+    on every coupled row where A's row sums vanish (W 1 = 1 - w D^-1 A 1), and decoupled rows get none."""
+    A, _ = CASES["neumann"](4096, 0)
+    mat = _mat(A)
+    level = Level(mat)
+    B = level.B.getValuesCSR()
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(B[0]))
+    assert np.all(level.leaf[rows] == level.leaf[B[1]])
+    inside = level.leaf[A.tocoo().row] == level.leaf[A.tocoo().col]
+    assert B[1].size == np.count_nonzero(inside)
+    ones = level.W.createVecRight()
+    ones.set(1.0)
+    y = level.W.createVecLeft()
+    level.W.mult(ones, y)
+    assert np.allclose(y.getArray(), 1.0)
+    E = level.coarse()
+    assert E.getSize()[0] == level.W.getSize()[1] < A.shape[0] / 3
+    D, _ = CASES["dmda2d"](4096, 0)
+    dmat = _mat(D)
+    dl = Level(dmat)
+    W = dl.W.getValuesCSR()
+    rows = np.repeat(np.arange(D.shape[0]), np.diff(W[0]))
+    held = np.bincount(rows[W[2] != 0], minlength=D.shape[0])
+    assert np.count_nonzero(held == 0) == 4 * 63    # the DMDA's boundary rows: no coarse vector
+    for m in (level, dl):
+        m.destroy()
+    for m in (mat, dmat, E):
+        m.destroy()
+
+
+def test_the_hierarchy_ends_at_the_coarse_size_and_its_options_are_checked():
+    A, _ = CASES["fem_tri"](16384, 0)
+    mat = _mat(A)
+    h = Hierarchy(mat, coarse_max=300)
+    rows = h.rows()
+    assert rows[0] == A.shape[0] and rows[-1] <= 300 and all(a > 2 * b for a, b in zip(rows, rows[1:]))
+    assert 1.0 < h.complexity() < 2.0
+    h.destroy()
+    h = Hierarchy(mat, coarse_max=300, max_levels=2)
+    assert len(h.rows()) == 2
+    h.destroy()
+    with pytest.raises(PETSc.Error) as err:
+        solve(A, np.ones(A.shape[0]), htp_variant="multilevel", htp_ml_damping=2.5)
+    assert re.search(r"-fo\d+_htp_ml_damping in \(0, 2\); got 1000, 12, 2.5", str(err.value.__cause__))
+
+
+@pytest.mark.parametrize("case, most", [("dmda2d", 22), ("free_surface", 18), ("fem_tri", 22), ("lognormal", 26),
+                                        ("neumann", 20), ("dmda3d", 18), ("fem_tet", 34)])
+def test_the_v_cycle_converges_on_foreign_matrices(case, most):
+    """CG with the V-cycle reaches 1e-8 on the true residual at about 16 000 rows in at most ``most`` iterations
+    (the Neumann case singular, its null space attached; no factor of the whole matrix: ``-htp_direct_max 0``), and
+    the view shows the levels and PCMG."""
+    A, b = CASES[case](16384, 0)
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
+    assert reason > 0 and its <= most and relres <= 1e-8, (reason, its, relres)
+    text = lines(ksp)
+    assert re.search(r"levels: [3-9], rows \d+ -> \d+", text) and "smoother: one Richardson step" in text
+    assert ksp.getPC().getPythonContext().getInnerPCs()["multigrid"].getType() == "mg"
+
+
+def test_tetrahedra_need_the_smoothers_damped():
+    """On P1 tetrahedra the leaf blocks overlap in A's energy (lambda(B^-1 A) near 3 on the finest level): undamped
+    (-htp_ml_damping near 2 and scale 1) the V-cycle is no longer positive definite; damped, CG converges."""
+    A, b = CASES["fem_tet"](16384, 0)
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel")
+    scale = float(re.search(r"scaled (\S+),", lines(ksp)).group(1))
+    assert scale < 0.7 and reason > 0
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_ml_mg_levels_ksp_richardson_scale=1.0)
+    assert reason < 0 or its > 40
+
+
+def test_two_ranks_build_the_levels_each_from_its_own_rows():
+    """On 2 ranks (rows split in the case's own order) the V-cycle converges as on one, with PCBJACOBI's blocks as
+    the leaf solve and the coarse LU on each rank."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "examples" / "matrix_file.py"), "-case",
+                          "dmda2d", "-n", "40000", "-ksp_type", "cg", "-ksp_norm_type", "unpreconditioned",
+                          "-ksp_rtol", "1e-8", "-pc_type", "python", "-pc_python_type", "petsc_htp.HTPPC",
+                          "-htp_variant", "multilevel", "-ksp_view"], cwd=ROOT, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "type: bjacobi" in out.stdout and "type: redundant" in out.stdout
+    assert int(re.search(r"^iterations: (\d+)$", out.stdout, re.M).group(1)) <= 24, out.stdout
+    assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1.2e-8
