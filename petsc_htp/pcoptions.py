@@ -148,6 +148,14 @@ class HTPOptions:
         return self
 
     @property
+    def plain(self) -> bool:
+        """Whether no option of the two-level method is set: its choices (a factor of the whole matrix, the multilevel
+        V-cycles) then follow the problem."""
+        return (self.leaf, self.ordering, self.aggregation, self.coarse, self.coarse_solver, self.overlap,
+                self.coarse_tol, self.coarse_rank, self.form, self.coarse_space_every) == (
+            0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
+
+    @property
     def probes(self) -> int:
         """Rayleigh probes at setup: ``probe``, or the variant's default for -1."""
         return self.probe if self.probe >= 0 else {"paper": 4}.get(self.variant, 0)

@@ -107,7 +107,20 @@ class TwoLevel:
         return setup
 
     def composed(self, mat, A, coords):
-        """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`)."""
+        """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`), or
+        with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a large
+        bare 2-D graph in a local order) the multilevel V-cycles, :attr:`note` saying so."""
+        if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
+            from petsc4py import PETSc
+
+            from .multilevel.choice import serves
+
+            why = "" if PETSc.Options(self.prefix).hasName("htp_variant") else serves(mat, A)
+            if why:
+                from .multilevel.setup import MultilevelPC
+
+                self.note = why
+                return MultilevelPC(mat, A, self.prefix + "htp_")
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)

@@ -48,13 +48,11 @@ class WholeChoice:
         from .twolevel import sizing
 
         o = self.opts
-        plain = (o.leaf, o.ordering, o.aggregation, o.coarse, o.coarse_solver, o.overlap, o.coarse_tol, o.coarse_rank,
-                 o.form, o.coarse_space_every) == (0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
         n, coll = mat.getSize()[0], Collective(mat.getComm())
         per_row = coll.sum(A.nnz) / max(n, 1)
         if coll.size > 1 and coll.any(A.shape[0] == 0):
             return self._exact(self._empty_rank(n, coll, A.shape[0], per_row))
-        if not plain:
+        if not o.plain:
             return None
         if o.direct_max >= 0:
             return "cholesky" if n <= o.direct_max else None

@@ -13,6 +13,7 @@ from petsc4py import PETSc
 from petsc_htp.bench.foreigncases import CASES
 from petsc_htp.multilevel.hierarchy import Hierarchy
 from petsc_htp.multilevel.level import Level
+from petsc_htp.petscmat import local_rows
 from test_foreign import lines, solve
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -107,3 +108,51 @@ def test_two_ranks_build_the_levels_each_from_its_own_rows():
     assert "type: bjacobi" in out.stdout and "type: redundant" in out.stdout
     assert int(re.search(r"^iterations: (\d+)$", out.stdout, re.M).group(1)) <= 24, out.stdout
     assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1.2e-8
+
+
+def test_the_leaves_order_changes_no_iteration_and_blocks_take_the_two_level_method():
+    """The levels built on the rows in their leaves' order (the default) and on the user's order take the same
+    iterations on P1 triangles numbered at random; a Mat with a block size takes the two-level method, and the view
+    says why."""
+    A, b = CASES["fem_tri"](16384, 0)
+    runs = [solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_reorder=flag) for flag in (1, 0)]
+    assert all(r[0] > 0 for r in runs) and abs(runs[0][1] - runs[1][1]) <= 1, [r[1] for r in runs]
+    assert "in their leaves' order" in lines(runs[0][3]) and "in their leaves' order" not in lines(runs[1][3])
+    E, c = CASES["dmda2d"](16384, 0)
+    mat = PETSc.Mat().createAIJ(E.shape, bsize=2, csr=(E.indptr, E.indices, E.data), comm=PETSc.COMM_SELF)
+    reason, its, relres, ksp, _ = solve(E, c, mat=mat, htp_variant="multilevel", htp_direct_max=0)
+    assert reason > 0 and relres <= 1e-8
+    ctx = ksp.getPC().getPythonContext()
+    assert "block size 2 takes the two-level method" in ctx.variant.note and "coarse:" in lines(ksp)
+
+
+def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes():
+    """HTPPC as it comes takes the V-cycles for a bare 2-D graph of at least MIN_ROWS rows in a local order, and
+    says so; ``-htp_variant twolevel`` keeps the two-level method; a mesh numbered at random, a 3-D graph, fewer rows
+    or a block size keep the two-level method (multilevel.choice)."""
+    from petsc_htp.multilevel import choice
+    from petsc_htp.scenes import foreign
+
+    side = int(np.ceil(np.sqrt(choice.MIN_ROWS)))
+    A, b = foreign.dmda(2, side, 1e3, 0)
+    reason, its, relres, ksp, _ = solve(A, b)
+    note = ksp.getPC().getPythonContext().variant.note
+    assert reason > 0 and relres <= 1e-8 and its <= 24 and "multilevel V-cycles in place" in note
+    assert "levels:" in lines(ksp)
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="twolevel")
+    assert reason > 0 and "form:" in lines(ksp) and not ksp.getPC().getPythonContext().variant.note
+    mat = _mat(A)
+    with local_rows(mat) as rows:
+        assert choice.serves(mat, rows) and choice.local_order(rows, 0)
+        rng = np.random.default_rng(0)
+        p = rng.permutation(A.shape[0])
+        shuffled = A[p][:, p].tocsr()
+        assert not choice.local_order(shuffled, 0)
+    small, _ = foreign.dmda(2, side - 20, 1e3, 0)
+    cube, _ = foreign.dmda(3, 60, 1e3, 0)
+    for other in (small, cube):
+        m = _mat(other)
+        with local_rows(m) as rows:
+            assert not choice.serves(m, rows)
+        m.destroy()
+    mat.destroy()

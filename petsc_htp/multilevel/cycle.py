@@ -10,7 +10,7 @@ from petsc4py import PETSc
 from ..twolevel.inner import scoped, set_up
 
 DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s B^-1 A down to this
-LANCZOS_STEPS = 10      # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
+LANCZOS_STEPS = 6      # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
 SAFETY = 1.1            # ... and the factor on CG's estimate
 SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
 LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},

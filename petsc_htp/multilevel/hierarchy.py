@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from .level import JACOBI, PASSES, Level
+from .level import JACOBI, Level
 
 COARSE_MAX = 1000       # rows of the coarsest operator, solved by one LU
 MAX_LEVELS = 12         # levels at most, the coarsest included
@@ -11,13 +11,14 @@ STALL = 0.8             # a level that keeps more than this share of its rows as
 
 
 class Hierarchy:
-    """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last."""
+    """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last;
+    ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`)."""
 
-    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, passes=PASSES):
+    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None):
         self.levels = []
         self.coarsest = A
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
-            level = Level(self.coarsest, jacobi, passes if not self.levels else PASSES)
+            level = Level(self.coarsest, jacobi, None if self.levels else leaf)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.destroy()

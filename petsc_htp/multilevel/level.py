@@ -24,12 +24,11 @@ class Level:
     """A level's operator ``A`` (PETSc), its leaves, the leaf-block matrix ``B`` and the coarse space ``W`` (A's
     rows by the next level's columns); :meth:`coarse` gives the next level's operator."""
 
-    def __init__(self, A, jacobi=JACOBI, passes=PASSES):
+    def __init__(self, A, jacobi=JACOBI, leaf=None):
         self.A = A
-        start, end = A.getOwnershipRange()
+        start = A.getOwnershipRange()[0]
         with local_rows(A) as rows:
-            with diagonal_block(A, rows) as block:
-                self.leaf = aggregates(sp.csr_matrix(block), passes=passes) if end > start else np.zeros(0, int)
+            self.leaf = leaves(A, rows) if leaf is None else leaf
             lone = decoupled_rows(rows, start)
             self.B = leaf_blocks(A, rows, self.leaf, start)
             bound = gershgorin(rows, start, A.getComm())
@@ -44,6 +43,15 @@ class Level:
         """Free the leaf-block matrix and the coarse space (not the operator)."""
         for mat in (self.B, self.W):
             mat.destroy()
+
+
+def leaves(A, rows) -> np.ndarray:
+    """The leaf of each of this rank's ``rows`` of ``A``: :data:`PASSES` aggregation passes over the strong couplings
+    of its diagonal block."""
+    if not rows.shape[0]:
+        return np.zeros(0, dtype=np.int64)
+    with diagonal_block(A, rows) as block:
+        return aggregates(sp.csr_matrix(block), passes=PASSES)
 
 
 def leaf_blocks(A, rows, leaf, start):

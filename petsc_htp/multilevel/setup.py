@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 from petsc4py import PETSc
 
 from ..events import phase
 from ..twolevel.inner import held
 from . import cycle
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
-from .level import JACOBI, PASSES
+from .level import JACOBI, leaves
 
 
 class MultilevelPC:
     """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` under the options ``prefix`` + ``ml_`` (PCMG's, and
-    ``coarse_max``, ``max_levels``, ``damping``: :mod:`.hierarchy`, :mod:`.cycle`)."""
+    ``coarse_max``, ``max_levels``: :mod:`.hierarchy`; ``jacobi``: :mod:`.level`; ``damping``: :mod:`.cycle`;
+    ``reorder``: :meth:`numeric`)."""
 
     whole = False
 
@@ -27,21 +29,33 @@ class MultilevelPC:
         self.max_levels = db.getInt("max_levels", MAX_LEVELS)
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)
-        self.passes = db.getInt("passes", PASSES)
+        self.reorder = db.getBool("reorder", True)
         if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2:
             raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1 and "
                              f"-{self.prefix}damping in (0, 2); got {self.coarse_max}, {self.max_levels}, "
                              f"{self.damping}")
-        self.hierarchy = self.pc = None
+        self.hierarchy = self.pc = self.P = self.perm = self.xp = self.yp = None
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, None, None, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
     def numeric(self, rows, density=None, keep_space=False):
-        """The hierarchy and its V-cycle for the operator's new values."""
+        """The hierarchy and its V-cycle for the operator's new values: on the operator itself, or (``reorder``, the
+        default) on its copy with each rank's rows in the order of their leaves, so that a leaf's rows lie together
+        whatever the user's numbering (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against
+        1 235 ms)."""
         self._free()
         self.times = {}
         with phase("HTPLevels", self.times, "levels"):
-            self.hierarchy = Hierarchy(self.mat, self.coarse_max, self.max_levels, self.jacobi, self.passes)
+            leaf = leaves(self.mat, rows)
+            A = self.mat
+            if self.reorder:
+                self.perm = np.argsort(leaf, kind="stable").astype(PETSc.IntType)
+                order = PETSc.IS().createGeneral(self.perm + self.mat.getOwnershipRange()[0], comm=self.mat.getComm())
+                A = self.P = self.mat.createSubMatrix(order, order)
+                order.destroy()
+                leaf = leaf[self.perm]
+                self.xp, self.yp = A.createVecs()
+            self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf)
         with phase("HTPCoarseFactor", self.times, "cycle"):
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping)
 
@@ -50,8 +64,13 @@ class MultilevelPC:
         return False
 
     def mult(self, x, y):
-        """y = one V-cycle applied to x."""
-        self.pc.apply(x, y)
+        """y = one V-cycle applied to x (in the leaves' order where reordered)."""
+        if self.P is None:
+            self.pc.apply(x, y)
+            return
+        self.xp.array_w[...] = x.array_r[self.perm]
+        self.pc.apply(self.xp, self.yp)
+        y.array_w[self.perm] = self.yp.array_r
 
     @staticmethod
     def presolve(ksp, b, x, stale=False):
@@ -85,22 +104,25 @@ class MultilevelPC:
         """Lines for ``-ksp_view``."""
         h, t = self.hierarchy, self.times
         rows = " -> ".join(str(n) for n in h.rows())
-        leaves = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
+        ratio = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
         scales = ", ".join(f"{s:.2f}" for s in self.scales)
         return [f"levels: {len(h.rows())}, rows {rows} (coarse LU up to {self.coarse_max} rows); "
                 f"operator complexity {h.complexity():.2f}",
-                f"leaves: aggregation, rows per coarse vector {leaves or 'none'}; coarse vectors: the leaf "
+                f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"
+                + ("; each rank's rows taken in their leaves' order" if self.P is not None else "")
+                + "; coarse vectors: the leaf "
                 f"constants smoothed by one Jacobi step; smoother: one Richardson step with the leaf blocks' "
                 f"exact solves, scaled {scales or '-'} (largest eigenvalue of s B^-1 A taken to {self.damping:g})",
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*",
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):
-        if self.pc is not None:
-            self.pc.destroy()
         if self.hierarchy is not None:
             self.hierarchy.destroy()
-        self.pc = self.hierarchy = None
+        for obj in (self.pc, self.P, self.xp, self.yp):
+            if obj is not None:
+                obj.destroy()
+        self.pc = self.hierarchy = self.P = self.perm = self.xp = self.yp = None
 
     def destroy(self):
         """Free the V-cycle and the hierarchy."""

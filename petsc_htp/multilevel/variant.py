@@ -2,6 +2,7 @@
 :mod:`petsc_htp.multilevel`."""
 from __future__ import annotations
 
+from ..twolevel import nearnull
 from ..variants import TwoLevel
 
 
@@ -12,7 +13,13 @@ class Multilevel(TwoLevel):
     title = "multilevel preconditioner: leaf solves smoothing every level of an aggregation hierarchy (PCMG)"
 
     def composed(self, mat, A, coords):
-        """The hierarchy's setup (coordinates are not used)."""
+        """The hierarchy's setup (coordinates are not used); a Mat with a block size or a near null space of its own
+        takes the two-level method, whose coarse space holds them (the levels' coarse vectors are constants)."""
+        if nearnull.attached(mat) or mat.getBlockSize() > 1:
+            self.note = ("multilevel takes scalar problems (constants as coarse vectors): the Mat's "
+                         + ("near null space" if nearnull.attached(mat) else f"block size {mat.getBlockSize()}")
+                         + " takes the two-level method")
+            return super().composed(mat, A, coords)
         from .setup import MultilevelPC
 
         return MultilevelPC(mat, A, self.prefix + "htp_")
