@@ -67,7 +67,8 @@ def test_the_hierarchy_ends_at_the_coarse_size_and_its_options_are_checked():
     h.destroy()
     with pytest.raises(PETSc.Error) as err:
         solve(A, np.ones(A.shape[0]), htp_variant="multilevel", htp_ml_damping=2.5)
-    assert re.search(r"-fo\d+_htp_ml_damping in \(0, 2\); got 1000, 12, 2.5", str(err.value.__cause__))
+    assert re.search(r"-fo\d+_htp_ml_damping in \(0, 2\) and -fo\d+_htp_ml_jacobi positive; got 1000, 12, 2.5, 1.4",
+                     str(err.value.__cause__))
 
 
 @pytest.mark.parametrize("case, most", [("dmda2d", 22), ("free_surface", 18), ("fem_tri", 22), ("lognormal", 26),
@@ -156,3 +157,38 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes():
             assert not choice.serves(m, rows)
         m.destroy()
     mat.destroy()
+
+
+def test_new_values_keep_the_leaves_unless_the_couplings_moved_or_the_iterations_grew():
+    """New values of the pattern that keep the couplings' strengths (the matrix times 2, then its coefficients
+    slightly changed) keep every level's leaves, with the leaf blocks, smoothed coarse vectors and Galerkin operators of
+    the new values; inclusions that moved make a new analysis (old leaves took 26 CG iterations against 15); and a
+    solve that took more than RENEW times the first one's iterations makes the next numeric step build anew."""
+    from petsc_htp.multilevel import setup
+    from petsc_htp.scenes import foreign
+
+    A, b = foreign.dmda(2, 128, 1e3, 0)
+    reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
+    ctx = ksp.getPC().getPythonContext()
+    assert reason > 0 and ctx.analysis_count == 1
+    rng = np.random.default_rng(1)
+    d = 1.0 + 0.01 * rng.random(A.shape[0])
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    for age, factor in ((1, 2.0), (2, 2.0 * d[rows] * d[A.indices])):
+        new = A.copy()
+        new.data = A.data * factor
+        mat.setValuesCSR(new.indptr, new.indices, new.data)
+        mat.assemble()
+        reason, its2, relres, ksp, _ = solve(new, b, mat=mat, ksp=ksp)
+        assert reason > 0 and relres <= 1e-8 and abs(its2 - its) <= 1, (its, its2)
+        assert f"kept from {age} numeric setup" in lines(ksp) and ctx.analysis_count == 1
+    moved, _ = foreign.dmda(2, 128, 1e3, 1)
+    mat.setValuesCSR(moved.indptr, moved.indices, moved.data)
+    mat.assemble()
+    reason, its3, relres, ksp, _ = solve(moved, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and its3 <= its + 3 and ctx.analysis_count == 2
+    ctx.setup.its = int(setup.RENEW * ctx.setup.first_its) + 1            # as if the last solve had taken that many
+    mat.setValuesCSR(A.indptr, A.indices, A.data)
+    mat.assemble()
+    reason, _, relres, ksp, _ = solve(A, b, mat=mat, ksp=ksp)
+    assert reason > 0 and relres <= 1e-8 and "kept from" not in lines(ksp)

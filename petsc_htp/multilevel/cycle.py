@@ -63,6 +63,13 @@ def multigrid(hierarchy, prefix, damping=DAMPING):
     return pc, scales
 
 
+def refreshed(pc, damping=DAMPING) -> list:
+    """Set the PCMG ``pc`` up again on its operators' new values (each level's factor and the coarse LU anew) and
+    damp its smoothers again; returns the scales, finest first."""
+    pc.setUp()
+    return [_damped(pc, level, damping) for level in range(pc.getMGLevels() - 1, 0, -1)]
+
+
 def _configured(ksp, defaults):
     """``ksp`` with ``defaults`` (options under its prefix where the user set none), then its options."""
     with scoped(ksp.getOptionsPrefix(), defaults):

@@ -26,6 +26,14 @@ class Hierarchy:
             self.levels.append(level)
             self.coarsest = level.coarse()
 
+    def refresh(self):
+        """New values of the finest operator (same pattern): every level's leaf blocks, smoothed coarse vectors and
+        Galerkin operator anew, in the matrices made before; the leaves kept."""
+        ops = self.operators()
+        for level, below in zip(self.levels, ops[1:]):
+            level.refresh()
+            level.coarse(into=below)
+
     def operators(self) -> list:
         """Each level's operator, then the coarsest."""
         return [level.A for level in self.levels] + [self.coarsest]

@@ -30,18 +30,31 @@ class Level:
         with local_rows(A) as rows:
             self.leaf = leaves(A, rows) if leaf is None else leaf
             lone = decoupled_rows(rows, start)
-            self.B = leaf_blocks(A, rows, self.leaf, start)
+            self.B, self.inside = leaf_blocks(A, rows, self.leaf, start)
             bound = gershgorin(rows, start, A.getComm())
         self.n_leaves = int(self.leaf.max()) + 1 if self.leaf.size else 0
-        self.W = smoothed(A, coarse_space(A, self.leaf, lone), jacobi / bound)
+        self.jacobi, self.W0 = jacobi, coarse_space(A, self.leaf, lone)
+        self.W = smoothed(A, self.W0, jacobi / bound)
 
-    def coarse(self):
-        """The Galerkin operator W^T A W of the next level."""
-        return self.A.ptap(self.W)
+    def coarse(self, into=None):
+        """The Galerkin operator W^T A W of the next level (into its matrix ``into`` where it exists: new values)."""
+        return self.A.ptap(self.W) if into is None else self.A.ptap(self.W, result=into)
+
+    def refresh(self):
+        """The leaf-block matrix and the smoothed coarse vectors from the operator's new values (same pattern, so
+        both keep theirs); the leaves are kept."""
+        start = self.A.getOwnershipRange()[0]
+        with local_rows(self.A) as rows:
+            values = rows.data[self.inside]
+            bound = gershgorin(rows, start, self.A.getComm())
+        smoothed(self.A, self.W0, self.jacobi / bound, into=self.W)
+        ai, aj, _ = self.B.getValuesCSR()
+        self.B.setValuesCSR(ai, aj, values)
+        self.B.assemble()
 
     def destroy(self):
-        """Free the leaf-block matrix and the coarse space (not the operator)."""
-        for mat in (self.B, self.W):
+        """Free the leaf-block matrix and the coarse spaces (not the operator)."""
+        for mat in (self.B, self.W0, self.W):
             mat.destroy()
 
 
@@ -56,7 +69,8 @@ def leaves(A, rows) -> np.ndarray:
 
 def leaf_blocks(A, rows, leaf, start):
     """The entries of this rank's ``rows`` (global columns) that couple rows of one leaf, laid out as ``A``: a
-    block-diagonal matrix whose Cholesky factor in the natural order fills only within the leaves."""
+    block-diagonal matrix whose Cholesky factor in the natural order fills only within the leaves; and which of the
+    rows' stored entries it holds."""
     n = rows.shape[0]
     row = np.repeat(np.arange(n, dtype=np.int32), np.diff(rows.indptr))
     cols = rows.indices - start if start else rows.indices
@@ -66,8 +80,9 @@ def leaf_blocks(A, rows, leaf, start):
         keep = (cols >= 0) & (cols < n)
         keep[keep] = leaf[row[keep]] == leaf[cols[keep]]
     indptr = np.concatenate(([0], np.cumsum(keep)))[rows.indptr].astype(PETSc.IntType)
-    return PETSc.Mat().createAIJ(A.getSizes(), csr=(indptr, rows.indices[keep].astype(PETSc.IntType),
-                                                    rows.data[keep]), comm=A.getComm())
+    B = PETSc.Mat().createAIJ(A.getSizes(), csr=(indptr, rows.indices[keep].astype(PETSc.IntType), rows.data[keep]),
+                              comm=A.getComm())
+    return B, keep
 
 
 def coarse_space(A, leaf, lone):
@@ -96,15 +111,14 @@ def gershgorin(rows, start, comm) -> float:
     return max(float(Collective(comm).max_array(np.array([local]))[0]), 1.0)
 
 
-def smoothed(A, W0, omega):
+def smoothed(A, W0, omega, into=None):
     """W = (I - omega D^-1 A) W0, one damped Jacobi step on the coarse vectors (smoothed aggregation's
-    prolongator), in PETSc; frees ``W0``."""
-    W = A.matMult(W0)
+    prolongator), in PETSc (into ``into``, a W of A's pattern made before: new values)."""
+    W = A.matMult(W0) if into is None else A.matMult(W0, result=into)
     d = A.getDiagonal()
     d.reciprocal()
     W.diagonalScale(L=d)
     W.scale(-omega)
     W.axpy(1.0, W0, structure=PETSc.Mat.Structure.SUBSET)
     d.destroy()
-    W0.destroy()
     return W

@@ -12,6 +12,10 @@ from ..twolevel.inner import held
 from . import cycle
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
 from .level import JACOBI, leaves
+from .moved import WeakInside
+
+
+RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
 
 
 class MultilevelPC:
@@ -30,29 +34,43 @@ class MultilevelPC:
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)
         self.reorder = db.getBool("reorder", True)
-        if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2:
-            raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1 and "
-                             f"-{self.prefix}damping in (0, 2); got {self.coarse_max}, {self.max_levels}, "
-                             f"{self.damping}")
-        self.hierarchy = self.pc = self.P = self.perm = self.xp = self.yp = None
-        self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, None, None, None
+        if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2 or not self.jacobi > 0:
+            raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1, "
+                             f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
+                             f"{self.max_levels}, {self.damping}, {self.jacobi}")
+        self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = None
+        self.age, self.first_its = 0, None
+        self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
     def numeric(self, rows, density=None, keep_space=False):
         """The hierarchy and its V-cycle for the operator's new values: on the operator itself, or (``reorder``, the
         default) on its copy with each rank's rows in the order of their leaves, so that a leaf's rows lie together
         whatever the user's numbering (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against
-        1 235 ms)."""
-        self._free()
+        1 235 ms). New values of the pattern keep the leaves (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved
+        away from them (:meth:`moved`, a new analysis) or a solve took more than :data:`RENEW` times the iterations of
+        the first on them."""
         self.times = {}
+        if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
+            with phase("HTPLevels", self.times, "levels"):
+                if self.P is not None:
+                    self.mat.createSubMatrix(self.order, self.order, submat=self.P)
+                self.hierarchy.refresh()
+            with phase("HTPCoarseFactor", self.times, "cycle"):
+                self.scales = cycle.refreshed(self.pc, self.damping)
+            self.age += 1
+            return
+        self._free()
+        self.age, self.first_its, self.its, self.leaf_its = 0, None, None, []
         with phase("HTPLevels", self.times, "levels"):
             leaf = leaves(self.mat, rows)
+            self.weak = WeakInside(rows, self.mat.getOwnershipRange()[0], leaf)
             A = self.mat
             if self.reorder:
                 self.perm = np.argsort(leaf, kind="stable").astype(PETSc.IntType)
-                order = PETSc.IS().createGeneral(self.perm + self.mat.getOwnershipRange()[0], comm=self.mat.getComm())
-                A = self.P = self.mat.createSubMatrix(order, order)
-                order.destroy()
+                self.order = PETSc.IS().createGeneral(self.perm + self.mat.getOwnershipRange()[0],
+                                                      comm=self.mat.getComm())
+                A = self.P = self.mat.createSubMatrix(self.order, self.order)
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf)
@@ -60,8 +78,9 @@ class MultilevelPC:
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping)
 
     def moved(self, rows, penalty=None) -> bool:
-        """False: each numeric step makes its leaves anew."""
-        return False
+        """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`): a new analysis
+        makes them anew."""
+        return self.weak is not None and self.weak.moved(rows)
 
     def mult(self, x, y):
         """y = one V-cycle applied to x (in the leaves' order where reordered)."""
@@ -78,8 +97,11 @@ class MultilevelPC:
         return None
 
     def solved(self, its, seconds):
-        """Keep the last solve's iterations and ms per iteration."""
+        """Keep the first and the last solve's iterations on this hierarchy and ms per iteration."""
         self.its, self.ms_per_it = its, 1e3 * seconds / max(its, 1)
+        self.leaf_its = self.leaf_its[:1] + [max([its] + self.leaf_its[1:])]     # the first and the most
+        if self.first_its is None:
+            self.first_its = its
 
     def inner_pcs(self) -> dict:
         """The PCMG."""
@@ -113,16 +135,18 @@ class MultilevelPC:
                 + "; coarse vectors: the leaf "
                 f"constants smoothed by one Jacobi step; smoother: one Richardson step with the leaf blocks' "
                 f"exact solves, scaled {scales or '-'} (largest eigenvalue of s B^-1 A taken to {self.damping:g})",
-                f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*",
+                f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
+                + (f"; leaves and coarse spaces kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago "
+                   f"(leaf blocks and Galerkin operators of the new values)" if self.age else ""),
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):
         if self.hierarchy is not None:
             self.hierarchy.destroy()
-        for obj in (self.pc, self.P, self.xp, self.yp):
+        for obj in (self.pc, self.P, self.order, self.xp, self.yp):
             if obj is not None:
                 obj.destroy()
-        self.pc = self.hierarchy = self.P = self.perm = self.xp = self.yp = None
+        self.pc = self.hierarchy = self.P = self.perm = self.order = self.xp = self.yp = None
 
     def destroy(self):
         """Free the V-cycle and the hierarchy."""
