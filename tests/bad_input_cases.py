@@ -424,6 +424,13 @@ def case_inconsistent_twolevel():
     return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900), {"htp_direct_max": 0})[0]
 
 
+def case_inconsistent_multilevel():
+    """The same, the multilevel V-cycles (their shifted coarse LU; CG reported CONVERGED_RTOL at a true relative
+    residual of 74 on a 65 536-row Neumann square): the same named error."""
+    return outcome(dist(_neumann_square()), np.random.default_rng(1).standard_normal(900),
+                   {"htp_variant": "multilevel", "htp_direct_max": 0, "htp_ml_coarse_max": 100})[0]
+
+
 def case_shifted_to_rounding():
     """I + 1e13 K, K the Neumann square (an implicit heat step at dt = 1e13 h^2): rows that sum to 1e-14 of their
     entries count as summing to zero, and the error says so (GAMG reported CONVERGED_RTOL at a true relative residual

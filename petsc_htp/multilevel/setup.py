@@ -7,7 +7,11 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
+from ..collective import Collective
 from ..events import phase
+from ..twolevel import nullspace
+from ..twolevel.consistency import RangeCheck
+from ..twolevel.csr import row_sums
 from ..twolevel.inner import held
 from . import cycle
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
@@ -38,7 +42,7 @@ class MultilevelPC:
             raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1, "
                              f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
                              f"{self.max_levels}, {self.damping}, {self.jacobi}")
-        self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = None
+        self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.age, self.first_its = 0, None
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
@@ -51,6 +55,7 @@ class MultilevelPC:
         away from them (:meth:`moved`, a new analysis) or a solve took more than :data:`RENEW` times the iterations of
         the first on them."""
         self.times = {}
+        self.range = self._range(rows)
         if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
@@ -91,10 +96,27 @@ class MultilevelPC:
         self.pc.apply(self.xp, self.yp)
         y.array_w[self.perm] = self.yp.array_r
 
-    @staticmethod
-    def presolve(ksp, b, x, stale=False):
-        """No start: the KSP's own guess."""
+    def presolve(self, ksp, b, x, stale=False):
+        """A named error where b holds a part along null constants the row sums show (:mod:`..twolevel.consistency`);
+        no start: the KSP's own guess."""
+        if self.range is not None:
+            self.range.check(ksp, b)
         return None
+
+    def _range(self, rows):
+        """The :class:`~..twolevel.consistency.RangeCheck` of the null components ``rows``' sums show where no null
+        space is attached (the graph's components on one rank, the whole matrix as one on several), or None: the
+        V-cycles' shifted coarse LU takes a singular matrix, and CG then reported CONVERGED_RTOL at a true relative
+        residual of 74 for a b outside its range (collective)."""
+        if self.mat.getNullSpace().handle:
+            return None
+        coll = Collective(self.mat.getComm())
+        diag, rowsum = rows.diagonal(k=self.mat.getOwnershipRange()[0]), row_sums(rows.indptr, rows.data)
+        if not coll.any(nullspace.vanishing(rowsum, diag).any()):
+            return None
+        n_comp, comp = nullspace.graph_components(rows) if coll.size == 1 else (1, np.zeros(rows.shape[0], int))
+        null = nullspace.null_by_rowsums(rowsum, diag, comp, n_comp, coll.max_array if coll.size > 1 else None)
+        return RangeCheck(rows, comp, null, coll) if null.any() else None
 
     def solved(self, its, seconds):
         """Keep the first and the last solve's iterations on this hierarchy and ms per iteration."""
