@@ -86,6 +86,13 @@ HELP = {
              "SPD by construction, whose factorisations are checked instead)",
 }
 
+MULTILEVEL_HELP = (    # read by petsc_htp.multilevel.setup.MultilevelPC (with PCMG's own under the same prefix)
+    ("coarse_max", "int", 1000, "rows of the coarsest operator, solved by one LU"),
+    ("max_levels", "int", 12, "levels at most, the coarsest included"),
+    ("jacobi", "real", 1.4, "the coarse vectors' Jacobi step, over the Gershgorin bound of D^-1 A"),
+    ("damping", "real", 1.5, "the largest eigenvalue of s B^-1 A the smoothers' Richardson scale s takes, in (0, 2)"),
+    ("reorder", "bool", True, "each rank's rows in their leaves' order"))
+
 
 @dataclass(frozen=True)
 class HTPOptions:
@@ -177,4 +184,6 @@ class HTPOptions:
                 now, default = now or "shipped", "shipped"
             kind = {str: "string", float: "real", int: "int", bool: "bool"}[type(f.default)]
             out.append(f"  {opt}{f.name} <{kind}> <now {now} : formerly {default}>: {HELP[f.name]} (HTPPC)")
+        out += [f"  {opt}ml_{name} <{kind}> <default {default}>: {text} (HTPPC multilevel)"
+                for name, kind, default, text in MULTILEVEL_HELP]
         return "\n".join(out)

@@ -192,3 +192,14 @@ def test_new_values_keep_the_leaves_unless_the_couplings_moved_or_the_iterations
     mat.assemble()
     reason, _, relres, ksp, _ = solve(A, b, mat=mat, ksp=ksp)
     assert reason > 0 and relres <= 1e-8 and "kept from" not in lines(ksp)
+
+
+def test_help_lists_the_multilevel_options_with_their_defaults():
+    """-help's multilevel lines (pcoptions.MULTILEVEL_HELP) carry the defaults the code uses."""
+    from petsc_htp.multilevel import cycle, hierarchy, level
+    from petsc_htp.pcoptions import MULTILEVEL_HELP, HTPOptions
+
+    defaults = {name: default for name, _, default, _ in MULTILEVEL_HELP}
+    assert defaults == {"coarse_max": hierarchy.COARSE_MAX, "max_levels": hierarchy.MAX_LEVELS,
+                        "jacobi": level.JACOBI, "damping": cycle.DAMPING, "reorder": True}
+    assert "-htp_ml_damping <real> <default 1.5>" in HTPOptions().help_text("-htp_")

@@ -1,5 +1,5 @@
 """The multilevel variant's setup (the interface of :class:`~petsc_htp.twolevel.composed.TwoLevelPC`): its
-hierarchy and V-cycle, made anew for new values (the leaves of every level follow the couplings)."""
+hierarchy and V-cycle, whose leaves new values of the pattern keep while they follow the couplings."""
 from __future__ import annotations
 
 import time
@@ -136,13 +136,17 @@ class MultilevelPC:
 
     @property
     def nbytes(self) -> int:
-        """Bytes this rank holds besides the operator: coarse operators, coarse spaces, leaf factors (12 per
-        entry)."""
-        total = held(self.pc)
-        for level in range(1, self.pc.getMGLevels()):
-            total += held(self.pc.getMGSmoother(level).getPC())
-        coarse = self.pc.getMGCoarseSolve().getPC()
-        return 12 * (total + (held(coarse) if coarse.getType() != "redundant" else 0))
+        """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, every level's leaf
+        blocks, coarse spaces and coarse operator, the leaf factors and the coarse LU (PCREDUNDANT's gathered one
+        not counted)."""
+        mats = [self.P] if self.P is not None else []
+        for level in self.hierarchy.levels:
+            mats += [level.B, level.W0, level.W]
+        mats += self.hierarchy.operators()[1:]
+        total = sum(int(m.getInfo()["nz_used"]) for m in mats)
+        pcs = [self.pc.getMGSmoother(level).getPC() for level in range(1, self.pc.getMGLevels())]
+        pcs = [pc.getBJacobiSubKSP()[0].getPC() if pc.getType() == "bjacobi" else pc for pc in pcs]
+        return 12 * (total + sum(held(pc) for pc in pcs + [self.pc.getMGCoarseSolve().getPC()]))
 
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
@@ -158,8 +162,8 @@ class MultilevelPC:
                 f"constants smoothed by one Jacobi step; smoother: one Richardson step with the leaf blocks' "
                 f"exact solves, scaled {scales or '-'} (largest eigenvalue of s B^-1 A taken to {self.damping:g})",
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
-                + (f"; leaves and coarse spaces kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago "
-                   f"(leaf blocks and Galerkin operators of the new values)" if self.age else ""),
+                + (f"; leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago (leaf blocks, "
+                   f"smoothed coarse vectors and Galerkin operators of the new values)" if self.age else ""),
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):
