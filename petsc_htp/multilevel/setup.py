@@ -13,6 +13,7 @@ from ..twolevel import nullspace
 from ..twolevel.consistency import RangeCheck
 from ..twolevel.csr import row_sums
 from ..twolevel.inner import held
+from ..twolevel.spacereuse import keeps_leaves
 from . import cycle
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
 from .level import JACOBI, leaves
@@ -28,6 +29,7 @@ class MultilevelPC:
     ``reorder``: :meth:`numeric`)."""
 
     whole = False
+    chosen = False          # taken by HTPPC as it comes (:func:`.choice.serves`), not asked for by -htp_variant
 
     def __init__(self, mat, rows, prefix):
         t0 = time.perf_counter()
@@ -43,7 +45,7 @@ class MultilevelPC:
                              f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
                              f"{self.max_levels}, {self.damping}, {self.jacobi}")
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
-        self.age, self.first_its = 0, None
+        self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
@@ -64,6 +66,7 @@ class MultilevelPC:
             with phase("HTPCoarseFactor", self.times, "cycle"):
                 self.scales = cycle.refreshed(self.pc, self.damping)
             self.age += 1
+            self.refresh_ms = sum(self.times.values())
             return
         self._free()
         self.age, self.first_its, self.its, self.leaf_its = 0, None, None, []
@@ -81,11 +84,18 @@ class MultilevelPC:
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf)
         with phase("HTPCoarseFactor", self.times, "cycle"):
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping)
+        self.build_ms, self.refresh_ms = sum(self.times.values()), 0.0
 
     def moved(self, rows, penalty=None) -> bool:
-        """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`): a new analysis
-        makes them anew."""
-        return self.weak is not None and self.weak.moved(rows)
+        """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`) by more than
+        keeping them costs (:func:`..twolevel.spacereuse.keeps_leaves`: the extra iterations old leaves took, at
+        ms per iteration, against what a hierarchy made anew costs beyond one refreshed; ``penalty``, that cost
+        the last time values moved, where one solve alone tells none): a new analysis makes them anew. The
+        two-level method's rule: on new inclusions every frame (the foreign study's sequence mode) the V-cycles had
+        made every frame's hierarchy anew, 2 836 against its 2 084 ms a frame at 1M rows."""
+        if self.weak is None or not self.weak.moved(rows):
+            return False
+        return not keeps_leaves(self.build_ms - self.refresh_ms, self.leaf_its, self.ms_per_it, penalty)
 
     def mult(self, x, y):
         """y = one V-cycle applied to x (in the leaves' order where reordered)."""
