@@ -44,6 +44,7 @@ from .ranksplit import crossing
 from .validation import check_attached, check_layout, check_matrix, check_size
 from .petscmat import VERSION_ATTR, aij_operator, attach, attached, local_rows, post_solve
 from .threads import set_threads
+from .twolevel.consistency import ESTIMATE
 from .variants import variant_class
 
 __all__ = ["HTPPC", "attach"]
@@ -242,7 +243,8 @@ class HTPPC(Inspection):
     def postSolve(self, pc, ksp, b, x):
         """After each KSPSolve: tell the variant its iterations; give the KSP back the settings its start changed
         (initial-guess flag, divergence tolerance)."""
-        if self.setup is not None and not self.fallback_active and self._started is not None:
+        if (self.setup is not None and not self.fallback_active and self._started is not None
+                and not (ksp.getOptionsPrefix() or "").endswith(ESTIMATE)):      # not Chebyshev's estimate's 10
             self.variant.solved(self.setup, ksp.getIterationNumber(), time.perf_counter() - self._started)
         self._changed, self.columns.started = give_back(ksp, self._changed), False
 
@@ -279,7 +281,7 @@ def _checked_rows(ctx, P, variant):
     (:func:`.keptcolumns.kept_columns`), which becomes ``ctx.columns`` where the block succeeds (else it is freed, and
     the previous preconditioner stays as it was)."""
     with local_rows(P, copy=variant == "paper") as A:
-        check_matrix(P, A, empty_ok=variant == "twolevel")
+        check_matrix(P, A, empty_ok=variant in ("twolevel", "multilevel"))
         columns = kept_columns(P, A, ctx.columns)
         if columns.copy is None:
             with _committed(ctx, columns):

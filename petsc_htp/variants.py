@@ -115,7 +115,10 @@ class TwoLevel:
         method's analysis serves new values at less cost a frame (1M rows, new inclusions every frame: 2.4-2.6 s a
         frame against 3.3-4.6 with the V-cycles' leaves kept or made anew; values that keep the couplings: 2.0
         against 2.6)."""
-        sequence, self.sequence = self.sequence, False
+        from .collective import Collective
+
+        sequence, self.sequence = Collective(mat.getComm()).any(self.sequence), False   # a rank's pattern may have
+        # changed where another's values alone did: every rank takes the same branch (the choice is collective)
         if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None and not sequence:
             from petsc4py import PETSc
 

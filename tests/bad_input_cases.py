@@ -431,6 +431,16 @@ def case_inconsistent_multilevel():
                    {"htp_variant": "multilevel", "htp_direct_max": 0, "htp_ml_coarse_max": 100})[0]
 
 
+def case_inconsistent_multilevel_components():
+    """A Dirichlet square (the DMDA matrix) beside a floating Neumann square (a second component whose row sums vanish),
+    nothing attached, b with a part along the floating square's constant, the multilevel V-cycles: on two ranks the
+    whole matrix had been taken as one component, not null, and CG reported CONVERGED_RTOL at a true relative residual
+    of 0.39; the components are now found over the ranks."""
+    A = sp.block_diag([dmda(2, 40)[0], _neumann_square()]).tocsr()
+    b = np.random.default_rng(1).standard_normal(A.shape[0])
+    return outcome(dist(A), b, {"htp_variant": "multilevel", "htp_direct_max": 0, "htp_ml_coarse_max": 100})[0]
+
+
 def case_shifted_to_rounding():
     """I + 1e13 K, K the Neumann square (an implicit heat step at dt = 1e13 h^2): rows that sum to 1e-14 of their
     entries count as summing to zero, and the error says so (GAMG reported CONVERGED_RTOL at a true relative residual

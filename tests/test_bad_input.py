@@ -58,6 +58,7 @@ EXPECTED = {
     "inconsistent_factor": INCONSISTENT,
     "inconsistent_twolevel": INCONSISTENT,
     "inconsistent_multilevel": INCONSISTENT,
+    "inconsistent_multilevel_components": INCONSISTENT,
     "shifted_to_rounding": INCONSISTENT[:-2] + r".*\(rows that sum to at most 1e-12 of their entries count as summing "
                                                 r"to zero: .*",
     "vector_layout": {1: r"error: the right-hand side vector's layout differs from the matrix's on 1 rank\(s\) \(rank 0: "

@@ -107,6 +107,8 @@ def test_two_ranks_build_the_levels_each_from_its_own_rows():
                          timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     assert "type: bjacobi" in out.stdout and "type: redundant" in out.stdout
+    leaf = out.stdout.split("type: bjacobi")[1].split("Up solver")[0]           # the blocks' own solver: exact
+    assert "type: cholesky" in leaf and "type: ilu" not in leaf, leaf
     assert int(re.search(r"^iterations: (\d+)$", out.stdout, re.M).group(1)) <= 24, out.stdout
     assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1.2e-8
 
@@ -215,3 +217,15 @@ def test_help_lists_the_multilevel_options_with_their_defaults():
     assert defaults == {"coarse_max": hierarchy.COARSE_MAX, "max_levels": hierarchy.MAX_LEVELS,
                         "jacobi": level.JACOBI, "damping": cycle.DAMPING, "reorder": True}
     assert "-htp_ml_damping <real> <default 1.5>" in HTPOptions().help_text("-htp_")
+
+
+def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
+    """2 ranks, the V-cycles chosen as it comes, then new values that change the nonzero mask on rank 0 only: both
+    ranks take the two-level method together (the choice had split: a hang) and CG converges."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "multilevel_case.py")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert re.search(r"^first MultilevelPC \d+$", out.stdout, re.M), out.stdout
+    second = re.search(r"^second (\w+) (\d+) (\S+)$", out.stdout, re.M)
+    assert second and second.group(1) == "TwoLevelPC" and float(second.group(3)) <= 1.01e-8, out.stdout

@@ -1,7 +1,12 @@
 """PETSc's PCMG on a :class:`~.hierarchy.Hierarchy`: the V-cycle, its smoothers and its coarse solve.
 
 Options under ``<prefix>`` (HTPPC's ``-htp_ml_``) are PCMG's own: ``-htp_ml_pc_mg_cycle_type w``,
-``-htp_ml_mg_levels_ksp_type``, ``-htp_ml_mg_coarse_pc_type`` and so on; the user's win over the defaults below.
+``-htp_ml_mg_levels_ksp_type``, ``-htp_ml_mg_coarse_pc_type`` and so on; the user's win over the defaults below, which
+sit in the options database (under the generic ``mg_levels_``, which PETSc reads for every level) for the whole
+set-up, so that PCBJACOBI's blocks and PCREDUNDANT's inner LU, made at set-up, find theirs. Where the user sets none
+of the levels' options, each level's up smoother is a KSP of its own sharing the down one's PC (one factor), so that
+the down one starts from zero and needs no product with A; any ``mg_levels_`` option of the user's makes one KSP serve
+both ways, as PCMG's default, so that it reaches both.
 """
 from __future__ import annotations
 
@@ -10,7 +15,7 @@ from petsc4py import PETSc
 from ..twolevel.inner import scoped, set_up
 
 DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s B^-1 A down to this
-LANCZOS_STEPS = 6      # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
+LANCZOS_STEPS = 6       # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
 SAFETY = 1.1            # ... and the factor on CG's estimate
 SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
 LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},
@@ -22,14 +27,21 @@ COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_ty
               "redundant_pc_factor_mat_ordering_type": "nd", "redundant_pc_factor_shift_type": "nonzero"}}
 
 
+def defaults(prefix, ranks) -> dict:
+    """The PCMG's defaults under ``prefix`` on ``ranks`` (1, or 2 for several): PCMG's distinct up smoothers unless
+    the user set a levels' option."""
+    out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **LEAF_SOLVE[ranks]}.items()}
+    out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items()})
+    if not any(name.startswith(prefix + "mg_levels_") for name in PETSc.Options().getAll()):
+        out["pc_mg_distinct_smoothup"] = "true"
+    return out
+
+
 def multigrid(hierarchy, prefix, damping=DAMPING):
     """A PCMG (set up) running V-cycles on ``hierarchy`` under the options ``prefix``; returns (the PC, the
-    Richardson scale of each smoothed level, finest first). The down and up smoothers of a level are two KSPs
-    sharing one PC (one factor): the down one starts from zero, so it needs no product with A
-    (PCMG's distinct up smoother)."""
+    Richardson scale of each smoothed level, finest first)."""
     ops = hierarchy.operators()
     comm = ops[0].getComm()
-    ranks = 1 if comm.getSize() == 1 else 2
     pc = PETSc.PC().create(comm)
     try:
         pc.setOptionsPrefix(prefix)
@@ -38,25 +50,27 @@ def multigrid(hierarchy, prefix, damping=DAMPING):
         count = len(ops)
         pc.setMGLevels(count)
         pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
-        with scoped(prefix, {"pc_mg_distinct_smoothup": "true"}):
+        with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2)):
             pc.setFromOptions()
-        for level in range(1, count):
-            pc.setMGInterpolation(level, hierarchy.levels[count - 1 - level].W)
-        coarse = pc.getMGCoarseSolve()
-        coarse.setOperators(ops[-1], ops[-1])
-        _configured(coarse, COARSE[ranks])
-        for level in range(1, count):
-            mine = hierarchy.levels[count - 1 - level]
-            down, up = pc.getMGSmootherDown(level), pc.getMGSmootherUp(level)
-            down.setOperators(mine.A, mine.B)
-            _configured(down, {**SMOOTHER, **LEAF_SOLVE[ranks]})
-            if up.handle != down.handle:
-                up.setPC(down.getPC())
-                up.setOperators(mine.A, mine.B)
-                _configured(up, SMOOTHER)
-        set_up(coarse.getPC(), coarse.getOptionsPrefix(), {})
-        pc.setUp()
-        scales = [_damped(pc, level, damping) for level in range(count - 1, 0, -1)]
+            for level in range(1, count):
+                pc.setMGInterpolation(level, hierarchy.levels[count - 1 - level].W)
+            coarse = pc.getMGCoarseSolve()
+            coarse.setOperators(ops[-1], ops[-1])
+            coarse.setFromOptions()
+            for level in range(1, count):
+                mine = hierarchy.levels[count - 1 - level]
+                down, up = pc.getMGSmootherDown(level), pc.getMGSmootherUp(level)
+                down.setOperators(mine.A, mine.B)
+                down.setFromOptions()
+                if up.handle != down.handle:                    # distinct: the same step, from x, on down's PC
+                    up.setPC(down.getPC())
+                    up.setOperators(mine.A, mine.B)
+                    up.setType(PETSc.KSP.Type.RICHARDSON)
+                    up.setTolerances(max_it=1)
+                    up.setNormType(PETSc.KSP.NormType.NONE)
+            set_up(coarse.getPC(), coarse.getOptionsPrefix(), {})
+            pc.setUp()
+            scales = [_damped(pc, level, damping) for level in range(count - 1, 0, -1)]
     except Exception:
         pc.destroy()
         raise
@@ -66,14 +80,10 @@ def multigrid(hierarchy, prefix, damping=DAMPING):
 def refreshed(pc, damping=DAMPING) -> list:
     """Set the PCMG ``pc`` up again on its operators' new values (each level's factor and the coarse LU anew) and
     damp its smoothers again; returns the scales, finest first."""
-    pc.setUp()
-    return [_damped(pc, level, damping) for level in range(pc.getMGLevels() - 1, 0, -1)]
-
-
-def _configured(ksp, defaults):
-    """``ksp`` with ``defaults`` (options under its prefix where the user set none), then its options."""
-    with scoped(ksp.getOptionsPrefix(), defaults):
-        ksp.setFromOptions()
+    prefix = pc.getOptionsPrefix()
+    with scoped(prefix, defaults(prefix, 1 if pc.getComm().getSize() == 1 else 2)):
+        pc.setUp()
+        return [_damped(pc, level, damping) for level in range(pc.getMGLevels() - 1, 0, -1)]
 
 
 def _damped(pc, level, damping) -> float:
@@ -101,6 +111,9 @@ def _damped(pc, level, damping) -> float:
         for obj in (b, x, est):
             obj.destroy()
     scale = min(1.0, damping / top) if top > 0 else 1.0
+    generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
+    if PETSc.Options().hasName(generic):                   # the user's, for every level
+        return PETSc.Options().getReal(generic)
     for ksp in {smoother.handle: smoother, pc.getMGSmootherUp(level).handle: pc.getMGSmootherUp(level)}.values():
         with scoped(ksp.getOptionsPrefix(), {"ksp_richardson_scale": str(scale)}):
             ksp.setFromOptions()

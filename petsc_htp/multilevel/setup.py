@@ -7,17 +7,14 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..collective import Collective
 from ..events import phase
-from ..twolevel import nullspace
-from ..twolevel.consistency import RangeCheck
-from ..twolevel.csr import row_sums
 from ..twolevel.inner import held
 from ..twolevel.spacereuse import keeps_leaves
 from . import cycle
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
 from .level import JACOBI, leaves
 from .moved import WeakInside
+from .ranges import range_check
 
 
 RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
@@ -57,7 +54,7 @@ class MultilevelPC:
         away from them (:meth:`moved`, a new analysis) or a solve took more than :data:`RENEW` times the iterations of
         the first on them."""
         self.times = {}
-        self.range = self._range(rows)
+        self.range = range_check(self.mat, rows)
         if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
@@ -107,26 +104,11 @@ class MultilevelPC:
         y.array_w[self.perm] = self.yp.array_r
 
     def presolve(self, ksp, b, x, stale=False):
-        """A named error where b holds a part along null constants the row sums show (:mod:`..twolevel.consistency`);
-        no start: the KSP's own guess."""
+        """A named error where b holds a part along null constants the row sums show (:mod:`.ranges`); no start: the
+        KSP's own guess."""
         if self.range is not None:
             self.range.check(ksp, b)
         return None
-
-    def _range(self, rows):
-        """The :class:`~..twolevel.consistency.RangeCheck` of the null components ``rows``' sums show where no null
-        space is attached (the graph's components on one rank, the whole matrix as one on several), or None: the
-        V-cycles' shifted coarse LU takes a singular matrix, and CG then reported CONVERGED_RTOL at a true relative
-        residual of 74 for a b outside its range (collective)."""
-        if self.mat.getNullSpace().handle:
-            return None
-        coll = Collective(self.mat.getComm())
-        diag, rowsum = rows.diagonal(k=self.mat.getOwnershipRange()[0]), row_sums(rows.indptr, rows.data)
-        if not coll.any(nullspace.vanishing(rowsum, diag).any()):
-            return None
-        n_comp, comp = nullspace.graph_components(rows) if coll.size == 1 else (1, np.zeros(rows.shape[0], int))
-        null = nullspace.null_by_rowsums(rowsum, diag, comp, n_comp, coll.max_array if coll.size > 1 else None)
-        return RangeCheck(rows, comp, null, coll) if null.any() else None
 
     def solved(self, its, seconds):
         """Keep the first and the last solve's iterations on this hierarchy and ms per iteration."""
@@ -164,13 +146,16 @@ class MultilevelPC:
         rows = " -> ".join(str(n) for n in h.rows())
         ratio = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
         scales = ", ".join(f"{s:.2f}" for s in self.scales)
-        return [f"levels: {len(h.rows())}, rows {rows} (coarse LU up to {self.coarse_max} rows); "
+        smoother = self.pc.getMGSmootherDown(1).getType() if self.pc.getMGLevels() > 1 else "none"
+        return [f"levels: {len(h.rows())}, rows {rows} (the coarsest by {self.pc.getMGCoarseSolve().getPC().getType()}"
+                f"; at most {self.coarse_max} rows unless the levels ran out); "
                 f"operator complexity {h.complexity():.2f}",
                 f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"
                 + ("; each rank's rows taken in their leaves' order" if self.P is not None else "")
-                + "; coarse vectors: the leaf "
-                f"constants smoothed by one Jacobi step; smoother: one Richardson step with the leaf blocks' "
-                f"exact solves, scaled {scales or '-'} (largest eigenvalue of s B^-1 A taken to {self.damping:g})",
+                + "; coarse vectors: the leaf constants smoothed by one Jacobi step; smoother: "
+                + (f"one Richardson step with the leaf blocks' exact solves, scaled {scales or '-'} (largest eigenvalue "
+                   f"of s B^-1 A taken to {self.damping:g})" if smoother == "richardson" else
+                   f"{smoother} (the user's options), scaled {scales or '-'}"),
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
                 + (f"; leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago (leaf blocks, "
                    f"smoothed coarse vectors and Galerkin operators of the new values)" if self.age else ""),

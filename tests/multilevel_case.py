@@ -1,0 +1,47 @@
+"""Run under ``mpiexec -n 2`` by tests/test_multilevel.py: HTPPC as it comes takes the V-cycles for a 2-D DMDA matrix
+(MIN_ROWS lowered to its size), then new values change the nonzero mask on rank 0 only (one coupling set to an
+explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must take the same method (the
+choice is collective: this had hung). Prints ``first <setup type> <its>`` and ``second <setup type> <its> <relres>``
+on rank 0."""
+import sys
+from pathlib import Path
+
+import petsc4py
+
+petsc4py.init(sys.argv[:1])
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from petsc_htp.multilevel import choice  # noqa: E402
+from petsc_htp.scenes.foreign import dmda  # noqa: E402
+from bad_input_cases import dist, rhs  # noqa: E402
+
+choice.MIN_ROWS = 30_000
+A, b = dmda(2, 200, 1e3, 0)
+mat = dist(A)
+db = PETSc.Options("mc_")
+for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "pc_type": "python",
+             "pc_python_type": "petsc_htp.HTPPC"}.items():
+    db.setValue(k, v)
+ksp = PETSc.KSP().create(PETSc.COMM_WORLD)
+ksp.setOptionsPrefix("mc_")
+ksp.setOperators(mat, mat)
+ksp.setFromOptions()
+bv = rhs(mat, b)
+x = bv.duplicate()
+ksp.solve(bv, x)
+PETSc.Sys.Print("first", type(ksp.getPC().getPythonContext().setup).__name__, ksp.getIterationNumber())
+i = 200 * 50 + 100                                        # an interior row of rank 0's
+j = i + 1
+if mat.getOwnershipRange()[0] <= i < mat.getOwnershipRange()[1]:
+    mat.setValues([i], [j], [0.0])
+    mat.setValues([j], [i], [0.0])
+mat.assemble()
+x.set(0.0)
+ksp.solve(bv, x)
+r = bv.duplicate()
+mat.mult(x, r)
+r.aypx(-1.0, bv)
+PETSc.Sys.Print("second", type(ksp.getPC().getPythonContext().setup).__name__, ksp.getIterationNumber(),
+                f"{r.norm() / bv.norm():.1e}")
