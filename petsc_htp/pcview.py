@@ -17,7 +17,8 @@ def lines(ctx) -> list:
     if ctx.variant is None:                    # nothing imported for a view before the setup
         return [f"HTPPC, variant {opts.variant}; not set up yet"]
     state = "" if ctx.setup is not None else "; not set up yet"
-    out = [f"HTPPC, variant {opts.variant}: {ctx.variant.title}{state}"]
+    title = getattr(ctx.setup, "title", None) or ctx.variant.title      # the method that runs (V-cycles as it comes)
+    out = [f"HTPPC, variant {opts.variant}: {title}{state}"]
     if ctx.variant.model:
         out.append(f"  model: {ctx.variant.model}")
     if getattr(ctx.variant, "note", ""):

@@ -129,7 +129,7 @@ def test_the_leaves_order_changes_no_iteration_and_blocks_take_the_two_level_met
     assert "block size 2 takes the two-level method" in ctx.variant.note and "coarse:" in lines(ksp)
 
 
-def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes():
+def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     """HTPPC as it comes takes the V-cycles for a bare 2-D graph of at least MIN_ROWS rows in a local order, and
     says so, and new values on the same KSP the two-level method; ``-htp_variant twolevel`` keeps the two-level
     method; a mesh numbered at random, a 3-D graph, fewer rows
@@ -143,6 +143,10 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes():
     note = ksp.getPC().getPythonContext().variant.note
     assert reason > 0 and relres <= 1e-8 and its <= 24 and "multilevel V-cycles in place" in note
     assert "levels:" in lines(ksp)
+    viewer = PETSc.Viewer().createASCII(str(tmp_path / "view.txt"))
+    ksp.view(viewer)
+    viewer.destroy()
+    assert "HTPPC, variant twolevel: multilevel preconditioner" in (tmp_path / "view.txt").read_text()
     mat = ksp.getOperators()[0]
     mat.setValuesCSR(A.indptr, A.indices, 2.0 * A.data)       # a simulation's next frame: the two-level method
     mat.assemble()

@@ -25,6 +25,7 @@ class MultilevelPC:
     ``coarse_max``, ``max_levels``: :mod:`.hierarchy`; ``jacobi``: :mod:`.level`; ``damping``: :mod:`.cycle`;
     ``reorder``: :meth:`numeric`)."""
 
+    title = "multilevel preconditioner: leaf solves smoothing every level of an aggregation hierarchy (PCMG)"
     whole = False
     chosen = False          # taken by HTPPC as it comes (:func:`.choice.serves`), not asked for by -htp_variant
 

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from ..twolevel import nearnull
 from ..variants import TwoLevel
+from .setup import MultilevelPC
 
 
 class Multilevel(TwoLevel):
     """:class:`~petsc_htp.variants.TwoLevel` with :class:`~.setup.MultilevelPC` for the matrices it does not factor
     whole."""
 
-    title = "multilevel preconditioner: leaf solves smoothing every level of an aggregation hierarchy (PCMG)"
+    title = MultilevelPC.title
 
     def composed(self, mat, A, coords):
         """The hierarchy's setup (coordinates are not used); a Mat with a block size or a near null space of its own
@@ -20,6 +21,4 @@ class Multilevel(TwoLevel):
                          + ("near null space" if nearnull.attached(mat) else f"block size {mat.getBlockSize()}")
                          + " takes the two-level method")
             return super().composed(mat, A, coords)
-        from .setup import MultilevelPC
-
         return MultilevelPC(mat, A, self.prefix + "htp_")
