@@ -124,7 +124,8 @@ class TwoLevel:
 
             from .multilevel.choice import serves
 
-            why = "" if PETSc.Options(self.prefix).hasName("htp_variant") else serves(mat, A)
+            why = "" if PETSc.Options(self.prefix).hasName("htp_variant") else serves(
+                mat, A, lambda: self.choice.block_shape(mat, A))
             if why:
                 from .multilevel.setup import MultilevelPC
 

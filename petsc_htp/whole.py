@@ -30,6 +30,7 @@ class WholeChoice:
 
     def __init__(self, opts, exact_only=None):
         self.opts, self.why, self.holds, self.made, self.exact_only = opts, None, None, None, exact_only
+        self.shape = None          # this rank's block's graph shape (:meth:`block_shape`)
 
     def take_made(self):
         """What the choice made that the factor takes, or None, handed over once: the ICC(0) trial's PC, set up on the
@@ -92,7 +93,7 @@ class WholeChoice:
             return "cholesky"
         if coords is None and per_row > sizing.RICH_ROW and n <= min(sizing.WHOLE_ICC_MAX.values()):
             return "icc"                                                  # the same in any dimension
-        dim = coords.shape[1] if coords is not None else self._block_shape(mat, A).dim
+        dim = coords.shape[1] if coords is not None else self.block_shape(mat, A).dim
         return sizing.whole_factor(int(coll.max_array(np.array([dim]))[0]), n, per_row, coords is None)
 
     def _banded(self, A):
@@ -133,7 +134,7 @@ class WholeChoice:
         from .ranksplit import crossing
         from .twolevel import sizing, spread
 
-        growth = self._block_shape(mat, A).growth
+        growth = self.block_shape(mat, A).growth
         growth = coll.max_array(np.array([growth if growth == growth else -np.inf]))[0]   # nan: too few rows to tell
         if coll.size > 1 and not growth >= sizing.EXPANDER_GROWTH:
             if crossing(mat, A, coll, A.data != 0)[1] >= spread.CROSSING:    # the blocks keep too few couplings to tell
@@ -158,15 +159,16 @@ class WholeChoice:
             return None
         return "icc" if coll.size == 1 else "asm" if grown else "bjacobi"
 
-    @staticmethod
-    def _block_shape(mat, A):
+    def block_shape(self, mat, A):
         """What this rank's diagonal block of the graph shows (:mod:`.twolevel.graphshape`: dimension and growth),
-        from 8 sampled balls."""
+        from 8 sampled balls; found once per choice (the multilevel choice reads it too)."""
         from .petscmat import diagonal_block
         from .twolevel.graphshape import graph_shape
 
-        with diagonal_block(mat, A) as block:
-            return graph_shape(block, want_weak=False, samples=8)
+        if self.shape is None:
+            with diagonal_block(mat, A) as block:
+                self.shape = graph_shape(block, want_weak=False, samples=8)
+        return self.shape
 
     def _empty_rank(self, n, coll, mine, per_row):
         """A matrix with a rank that owns no rows (this rank ``mine``), which the two-level method cannot take as it is:

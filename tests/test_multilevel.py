@@ -136,6 +136,7 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     or a block size keep the two-level method (multilevel.choice)."""
     from petsc_htp.multilevel import choice
     from petsc_htp.scenes import foreign
+    from petsc_htp.twolevel.graphshape import graph_shape
 
     side = int(np.ceil(np.sqrt(choice.MIN_ROWS)))
     A, b = foreign.dmda(2, side, 1e3, 0)
@@ -157,7 +158,7 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     assert reason > 0 and "form:" in lines(ksp) and not ksp.getPC().getPythonContext().variant.note
     mat = _mat(A)
     with local_rows(mat) as rows:
-        assert choice.serves(mat, rows) and choice.local_order(rows, 0)
+        assert choice.serves(mat, rows, lambda: graph_shape(rows, want_weak=False, samples=8)) and choice.local_order(rows, 0)
         rng = np.random.default_rng(0)
         p = rng.permutation(A.shape[0])
         shuffled = A[p][:, p].tocsr()
@@ -167,7 +168,7 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     for other in (small, cube):
         m = _mat(other)
         with local_rows(m) as rows:
-            assert not choice.serves(m, rows)
+            assert not choice.serves(m, rows, lambda: graph_shape(rows, want_weak=False, samples=8))
         m.destroy()
     mat.destroy()
 

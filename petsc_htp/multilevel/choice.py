@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..collective import Collective
-from ..petscmat import diagonal_block
 from ..twolevel import nearnull
 from ..twolevel.csr import row_entries
 
@@ -20,17 +19,15 @@ SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 
 
-def serves(mat, rows) -> str:
-    """Why the V-cycles serve ``mat`` (this rank's ``rows``), or '' (collective): at least :data:`MIN_ROWS` rows, no
-    block size or near null space of its own, a 2-D graph (:mod:`..twolevel.graphshape`, 8 sampled balls of
-    each rank's diagonal block) and rows in a local order (:func:`local_order`, on every rank)."""
-    from ..twolevel.graphshape import graph_shape
-
+def serves(mat, rows, shape) -> str:
+    """Why the V-cycles serve ``mat`` (this rank's ``rows``; ``shape()`` gives its diagonal block's
+    :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' (collective): at
+    least :data:`MIN_ROWS` rows, no block size or near null space of its own, a 2-D graph on some rank and rows in a
+    local order (:func:`local_order`, on every rank)."""
     n = mat.getSize()[0]
     if n < MIN_ROWS or nearnull.attached(mat) or mat.getBlockSize() > 1:
         return ""
-    with diagonal_block(mat, rows) as block:
-        dim = graph_shape(block, want_weak=False, samples=8).dim if block.shape[0] else 0
+    dim = shape().dim if rows.shape[0] else 0
     coll = Collective(mat.getComm())
     if int(coll.max_array(np.array([dim]))[0]) != DIM or coll.any(not local_order(rows, mat.getOwnershipRange()[0])):
         return ""

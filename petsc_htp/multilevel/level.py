@@ -32,7 +32,6 @@ class Level:
             lone = decoupled_rows(rows, start)
             self.B, self.inside = leaf_blocks(A, rows, self.leaf, start)
             bound = gershgorin(rows, start, A.getComm())
-        self.n_leaves = int(self.leaf.max()) + 1 if self.leaf.size else 0
         self.jacobi, self.W0 = jacobi, coarse_space(A, self.leaf, lone)
         self.W = smoothed(A, self.W0, jacobi / bound)
 

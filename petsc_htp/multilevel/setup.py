@@ -100,7 +100,7 @@ class MultilevelPC:
         if self.P is None:
             self.pc.apply(x, y)
             return
-        self.xp.array_w[...] = x.array_r[self.perm]
+        np.take(x.array_r, self.perm, out=self.xp.array_w)          # no temporary of the permuted vector
         self.pc.apply(self.xp, self.yp)
         y.array_w[self.perm] = self.yp.array_r
 
