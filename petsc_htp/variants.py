@@ -68,7 +68,6 @@ class TwoLevel:
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         self.choice = None                         # whether and why the whole matrix is factored (WholeChoice)
-        self.sequence = False                      # new values came for a pattern the V-cycles took (composed)
         self.exact_only = None                     # why ICC(0) of the whole matrix does not serve (:meth:`once`)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
@@ -109,17 +108,9 @@ class TwoLevel:
 
     def composed(self, mat, A, coords):
         """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`), or
-        with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a large
-        bare 2-D graph in a local order) the multilevel V-cycles, :attr:`note` saying so, but for new values of a
-        pattern that took them (:attr:`sequence`, set by :meth:`moved`): a simulation's frames, where the two-level
-        method's analysis serves new values at less cost a frame (1M rows, new inclusions every frame: 2.4-2.6 s a
-        frame against 3.3-4.6 with the V-cycles' leaves kept or made anew; values that keep the couplings: 2.0
-        against 2.6)."""
-        from .collective import Collective
-
-        sequence, self.sequence = Collective(mat.getComm()).any(self.sequence), False   # a rank's pattern may have
-        # changed where another's values alone did: every rank takes the same branch (the choice is collective)
-        if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None and not sequence:
+        with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a bare 2-D
+        graph of at least ``MIN_ROWS`` rows in a local order) the multilevel V-cycles, :attr:`note` saying so."""
+        if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
             from petsc4py import PETSc
 
             from .multilevel.choice import serves
@@ -130,12 +121,7 @@ class TwoLevel:
                 from .multilevel.setup import MultilevelPC
 
                 self.note = why
-                setup = MultilevelPC(mat, A, self.prefix + "htp_")
-                setup.chosen = True
-                return setup
-        if sequence:
-            self.note = ("the two-level method: new values came for this pattern, which the multilevel V-cycles took "
-                         "for its first solve (a simulation's frames reuse the two-level analysis at less cost)")
+                return MultilevelPC(mat, A, self.prefix + "htp_")
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
@@ -199,9 +185,6 @@ class TwoLevel:
         old leaves cost the last time values moved (kept across analyses of the pattern)."""
         from .twolevel.spacereuse import stale_cost
 
-        if getattr(analysis, "chosen", False):            # the V-cycles chosen for a large 2-D graph: new values of
-            self.sequence = True                          # its pattern take the two-level method (see composed)
-            return True
         moved = analysis.moved(A, self.stale_ms)          # a DirectPC only where its rows lost their dominance
         cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and not getattr(analysis, "whole", False) \
             else None

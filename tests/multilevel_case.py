@@ -1,7 +1,7 @@
 """Run under ``mpiexec -n 2`` by tests/test_multilevel.py: HTPPC as it comes takes the V-cycles for a 2-D DMDA matrix
 (MIN_ROWS lowered to its size), then new values change the nonzero mask on rank 0 only (one coupling set to an
-explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must take the same method (the
-choice is collective: this had hung). Prints ``first <setup type> <its>`` and ``second <setup type> <its> <relres>``
+explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must make a new analysis and take
+the same method (the choice is collective: this had hung). Prints ``first <setup type> <its>`` and ``second <setup type> <its> <relres>``
 on rank 0."""
 import sys
 from pathlib import Path

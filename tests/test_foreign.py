@@ -845,11 +845,16 @@ def test_several_dense_rows_get_metis_order_at_any_coarse_size():
     G = ((G + G.T) > 0).astype(float)
     A = (sp.diags(np.asarray(G.sum(axis=1)).ravel() + 0.01) - G).tocsr()
     A.sort_indices()
-    reason, its, relres, ksp, _ = solve(A, np.random.default_rng(1).standard_normal(side * side))
+    b = np.random.default_rng(1).standard_normal(side * side)
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="twolevel")
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and relres <= 1e-8 and setup.st.dense and setup.st.ordered, lines(ksp)
     factored = setup.coarse.pc.getFactorMatrix().getInfo()["nz_used"]
     assert factored <= 20 * setup.ops.E.getInfo()["nz_used"], (factored, setup.ops.E.getInfo()["nz_used"])
+    for variant in ({}, {"htp_variant": "multilevel"}):     # a dense row keeps the two-level method (354 s before)
+        reason, its, relres, ksp, _ = solve(A, b, **variant)
+        assert reason > 0 and relres <= 1e-8 and ksp.getPC().getPythonContext().setup.st.dense, lines(ksp)
+    assert "a dense row" in ksp.getPC().getPythonContext().variant.note
 
 
 def test_the_margin_looks_at_a_sample_first_and_at_every_row_where_the_sample_passes():
@@ -946,12 +951,13 @@ def test_a_coarse_graph_that_grows_as_no_mesh_takes_gamg_in_place_of_the_lu():
     W = sp.csr_matrix((np.ones(keep.sum()), (rows[keep], cols[keep])), shape=(side * side,) * 2)
     W = W + W.T
     A = (sp.diags(np.asarray(W.sum(axis=1)).ravel() + 1e-2) - W).tocsr()
-    reason, its, relres, ksp, _ = solve(A, np.random.default_rng(1).standard_normal(side * side))
+    reason, its, relres, ksp, _ = solve(A, np.random.default_rng(1).standard_normal(side * side),
+                                        htp_variant="twolevel")
     text = lines(ksp)
     assert reason > 0 and relres <= 1e-8 and its <= 40, (reason, its, text)
     assert "GAMG" in text and "no 2-D mesh's: an LU would fill" in text, text
     A0, b = foreign.dmda(2, 200, 1e3, 0)
-    assert "coarse solve: LU" in lines(solve(A0, b)[3])
+    assert "coarse solve: LU" in lines(solve(A0, b, htp_variant="twolevel")[3])
 
 
 def _cells(k):
@@ -1048,12 +1054,12 @@ def _mpirun(ranks, script, *args):
 
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
-    """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC chosen by options only, on 1 and 2 ranks (each
-    rank aggregates its own rows). With standard second passes and the eig space each rank orders its own leaves'
+    """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC's two-level method chosen by options only, on 1 and
+    2 ranks (each rank aggregates its own rows). With standard second passes and the eig space each rank orders its own leaves'
     coarse columns by METIS, those coupled to the other rank last (360^2: about 13 700 coarse rows in blocks of
     2); the default's paired aggregates with one column each are ordered by PETSc's factor alone."""
     for flags, metis in ((("-htp_aggregation", "standard"), True), ((), False)):
-        proc = _mpirun(ranks, EXAMPLE, "-n", "360", *HTPPC_FLAGS, *flags)
+        proc = _mpirun(ranks, EXAMPLE, "-n", "360", *HTPPC_FLAGS, "-htp_variant", "twolevel", *flags)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert f"{ranks} MPI process" in proc.stdout
         its = int(proc.stdout.split("iterations:")[1].split()[0])
@@ -1109,7 +1115,7 @@ def test_a_large_2d_coarse_operator_on_two_ranks_gets_distributed_v_cycles_in_th
     assert sizing.coarse_solver(2, 65536, 2, "morton") == "lu"          # own frames: the LU, 22 against 34 its
     assert sizing.coarse_exact(3, "gamg") and not sizing.coarse_exact(3, "gamg", near=6)     # paired: two V-cycles
     assert sizing.coarse_exact(3, "gamg", "morton") and sizing.coarse_exact(2, "lu")
-    proc = _mpirun(ranks, EXAMPLE, "-n", "440", *HTPPC_FLAGS)
+    proc = _mpirun(ranks, EXAMPLE, "-n", "440", *HTPPC_FLAGS, "-htp_variant", "twolevel")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     its = int(proc.stdout.split("iterations:")[1].split()[0])
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])

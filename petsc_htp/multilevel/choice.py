@@ -1,19 +1,21 @@
 """When HTPPC as it comes runs the multilevel V-cycles in place of the two-level method: a bare, scalar 2-D graph of
 at least :data:`MIN_ROWS` rows, where their iterations (about half the two-level method's) pay for a costlier
-application and the hierarchy's setup costs less than the two-level method's coarse LU."""
+application and the hierarchy's setup costs less than the two-level method's analysis and coarse LU."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..collective import Collective
 from ..twolevel import nearnull
+from ..twolevel.blocksize import block_size
 from ..twolevel.csr import row_entries
+from ..twolevel.graphshape import hub_rows
 
-MIN_ROWS = 200_000      # rows from which the V-cycles serve a bare 2-D graph (one rank, single solves, CG to 1e-8,
-# setup + solve ms, two-level against multilevel, 2026-11-28: 262 144 rows dmda2d 728 / 605, free_surface 500 / 402,
-# lognormal 685 / 564, neumann 651 / 631, fem_tri 1178 / 1268; 1 048 576 rows dmda2d 3 608 / 2 908, free_surface
-# 2 832 / 1 992; 65 536 rows level or the two-level method ahead; 3-D: the Galerkin products of the smoothed coarse
-# vectors cost more than the levels save, dmda3d at 1M 4.0 / 6.3 s)
+MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (one rank, single solves, CG to 1e-8,
+# setup + solve ms, two-level against multilevel with its Jacobi smoother, 2026-11-28: 32 768 rows dmda2d 100 / 64,
+# lognormal 76 / 52, fem_tri 132 / 111, neumann 78 / 92; 65 536 rows dmda2d 186 / 107, free_surface 105 / 72,
+# lognormal 144 / 99, neumann 174 / 136, fem_tri 266 / 246; 16 384 rows level within 10 %; 3-D: the Galerkin
+# products of the smoothed coarse vectors cost more than the levels save, dmda3d at 1M 4.0 / 6.3 s)
 DIM = 2
 SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
@@ -22,17 +24,40 @@ SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 def serves(mat, rows, shape) -> str:
     """Why the V-cycles serve ``mat`` (this rank's ``rows``; ``shape()`` gives its diagonal block's
     :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' (collective): at
-    least :data:`MIN_ROWS` rows, no block size or near null space of its own, a 2-D graph on some rank and rows in a
-    local order (:func:`local_order`, on every rank)."""
+    least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph on some rank and rows in a local
+    order (:func:`local_order`, on every rank)."""
     n = mat.getSize()[0]
-    if n < MIN_ROWS or nearnull.attached(mat) or mat.getBlockSize() > 1:
+    if n < MIN_ROWS or unscalar(mat, rows):
         return ""
-    dim = shape().dim if rows.shape[0] else 0
-    coll = Collective(mat.getComm())
-    if int(coll.max_array(np.array([dim]))[0]) != DIM or coll.any(not local_order(rows, mat.getOwnershipRange()[0])):
+    if dimension(mat, rows, shape) != DIM or Collective(mat.getComm()).any(
+            not local_order(rows, mat.getOwnershipRange()[0])):
         return ""
     return (f"multilevel V-cycles in place of the two-level method (by the problem: a bare 2-D graph of {n} rows, at "
             f"least {MIN_ROWS}; -htp_variant twolevel keeps the two-level method)")
+
+
+def unscalar(mat, rows) -> str:
+    """What keeps the V-cycles, whose coarse vectors are constants, from ``mat`` (this rank's ``rows``), or ''
+    (collective): a near null space of its own, a block size (the Mat's or its pattern's: :mod:`..twolevel.blocksize`,
+    elasticity handed over as a plain AIJ), or a dense row (:func:`..twolevel.graphshape.hub_rows`, more than sqrt(N)
+    entries: a constraint's or a ground node's), which the smoothed coarse vectors spread into dense Galerkin
+    operators (three hubs each coupled to 8 000 of a 200^2 grid's rows: 354 s)."""
+    coll = Collective(mat.getComm())
+    if nearnull.attached(mat):
+        return "the Mat's near null space"
+    bs, source = block_size(mat, rows, coll)
+    if bs > 1:
+        return f"block size {bs} ({source})"
+    if coll.any(hub_rows(rows.indptr, mat.getSize()[0] ** 0.5).any()):
+        return "a dense row (its couplings would fill every coarse level)"
+    return ""
+
+
+def dimension(mat, rows, shape) -> int:
+    """The largest dimension of the ranks' graphs (``shape()``: this rank's :class:`..twolevel.graphshape.GraphShape`;
+    0 on a rank without rows; collective)."""
+    dim = shape().dim if rows.shape[0] else 0
+    return int(Collective(mat.getComm()).max_array(np.array([dim]))[0])
 
 
 def local_order(rows, start) -> bool:

@@ -12,13 +12,14 @@ STALL = 0.8             # a level that keeps more than this share of its rows as
 
 class Hierarchy:
     """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last;
-    ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`)."""
+    ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`); ``blocks``: each level's
+    leaf-block matrix made (the leaf solves' smoother)."""
 
-    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None):
+    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True):
         self.levels = []
         self.coarsest = A
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
-            level = Level(self.coarsest, jacobi, None if self.levels else leaf)
+            level = Level(self.coarsest, jacobi, None if self.levels else leaf, blocks)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.destroy()

@@ -21,16 +21,17 @@ JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound
 
 
 class Level:
-    """A level's operator ``A`` (PETSc), its leaves, the leaf-block matrix ``B`` and the coarse space ``W`` (A's
-    rows by the next level's columns); :meth:`coarse` gives the next level's operator."""
+    """A level's operator ``A`` (PETSc), its leaves, the leaf-block matrix ``B`` (where ``blocks``: the leaf solves'
+    smoother; else None) and the coarse space ``W`` (A's rows by the next level's columns); :meth:`coarse` gives
+    the next level's operator."""
 
-    def __init__(self, A, jacobi=JACOBI, leaf=None):
+    def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True):
         self.A = A
         start = A.getOwnershipRange()[0]
         with local_rows(A) as rows:
             self.leaf = leaves(A, rows) if leaf is None else leaf
             lone = decoupled_rows(rows, start)
-            self.B, self.inside = leaf_blocks(A, rows, self.leaf, start)
+            self.B, self.inside = leaf_blocks(A, rows, self.leaf, start) if blocks else (None, None)
             bound = gershgorin(rows, start, A.getComm())
         self.jacobi, self.W0 = jacobi, coarse_space(A, self.leaf, lone)
         self.W = smoothed(A, self.W0, jacobi / bound)
@@ -40,21 +41,23 @@ class Level:
         return self.A.ptap(self.W) if into is None else self.A.ptap(self.W, result=into)
 
     def refresh(self):
-        """The leaf-block matrix and the smoothed coarse vectors from the operator's new values (same pattern, so
+        """The leaf-block matrix (where held) and the smoothed coarse vectors from the operator's new values (same pattern, so
         both keep theirs); the leaves are kept."""
         start = self.A.getOwnershipRange()[0]
         with local_rows(self.A) as rows:
-            values = rows.data[self.inside]
+            values = None if self.B is None else rows.data[self.inside]
             bound = gershgorin(rows, start, self.A.getComm())
         smoothed(self.A, self.W0, self.jacobi / bound, into=self.W)
-        ai, aj, _ = self.B.getValuesCSR()
-        self.B.setValuesCSR(ai, aj, values)
-        self.B.assemble()
+        if self.B is not None:
+            ai, aj, _ = self.B.getValuesCSR()
+            self.B.setValuesCSR(ai, aj, values)
+            self.B.assemble()
 
     def destroy(self):
         """Free the leaf-block matrix and the coarse spaces (not the operator)."""
         for mat in (self.B, self.W0, self.W):
-            mat.destroy()
+            if mat is not None:
+                mat.destroy()
 
 
 def leaves(A, rows) -> np.ndarray:

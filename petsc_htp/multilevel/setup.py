@@ -7,10 +7,12 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
+from ..collective import Collective
 from ..events import phase
 from ..twolevel.inner import held
-from ..twolevel.spacereuse import keeps_leaves
+from ..twolevel.spacereuse import stale_cost
 from . import cycle
+from .choice import local_order
 from .hierarchy import COARSE_MAX, MAX_LEVELS, Hierarchy
 from .level import JACOBI, leaves
 from .moved import WeakInside
@@ -21,15 +23,14 @@ RENEW = 1.5             # a solve taking this many times the first one's iterati
 
 
 class MultilevelPC:
-    """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` under the options ``prefix`` + ``ml_`` (PCMG's, and
-    ``coarse_max``, ``max_levels``: :mod:`.hierarchy`; ``jacobi``: :mod:`.level`; ``damping``: :mod:`.cycle`;
-    ``reorder``: :meth:`numeric`)."""
+    """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` (this rank's ``rows``; its graph of dimension ``dim``)
+    under the options ``prefix`` + ``ml_`` (PCMG's, and ``coarse_max``, ``max_levels``: :mod:`.hierarchy`;
+    ``jacobi``: :mod:`.level`; ``damping``, ``smoother``: :mod:`.cycle`; ``reorder``: :meth:`numeric`)."""
 
     title = "multilevel preconditioner: leaf solves smoothing every level of an aggregation hierarchy (PCMG)"
     whole = False
-    chosen = False          # taken by HTPPC as it comes (:func:`.choice.serves`), not asked for by -htp_variant
 
-    def __init__(self, mat, rows, prefix):
+    def __init__(self, mat, rows, prefix, dim=2):
         t0 = time.perf_counter()
         self.mat, self.prefix = mat, prefix + "ml_"
         db = PETSc.Options(self.prefix)
@@ -37,21 +38,28 @@ class MultilevelPC:
         self.max_levels = db.getInt("max_levels", MAX_LEVELS)
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)
-        self.reorder = db.getBool("reorder", True)
+        self.smoother = db.getString("smoother", "auto")
+        self.smoother = cycle.default_smoother(dim) if self.smoother == "auto" else self.smoother
+        self.reorder = db.getBool("reorder") if db.hasName("reorder") else Collective(mat.getComm()).any(
+            not local_order(rows, mat.getOwnershipRange()[0]))
         if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2 or not self.jacobi > 0:
             raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1, "
                              f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
                              f"{self.max_levels}, {self.damping}, {self.jacobi}")
+        if self.smoother not in cycle.SMOOTHERS:
+            raise ValueError(f"-{self.prefix}smoother {self.smoother}: expected auto or one of "
+                             f"{', '.join(cycle.SMOOTHERS)}")
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
     def numeric(self, rows, density=None, keep_space=False):
-        """The hierarchy and its V-cycle for the operator's new values: on the operator itself, or (``reorder``, the
-        default) on its copy with each rank's rows in the order of their leaves, so that a leaf's rows lie together
-        whatever the user's numbering (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against
-        1 235 ms). New values of the pattern keep the leaves (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved
+        """The hierarchy and its V-cycle for the operator's new values: on the operator itself, or (``reorder``, by
+        default where some rank's rows are not in a local order, :func:`.choice.local_order`) on its copy with each
+        rank's rows in the order of their leaves, so that a leaf's rows lie together whatever the user's numbering
+        (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against 1 235 ms; the 2-D DMDA at 1M rows,
+        its own order: 2 908 against 3 180). New values of the pattern keep the leaves (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved
         away from them (:meth:`moved`, a new analysis) or a solve took more than :data:`RENEW` times the iterations of
         the first on them."""
         self.times = {}
@@ -62,7 +70,7 @@ class MultilevelPC:
                     self.mat.createSubMatrix(self.order, self.order, submat=self.P)
                 self.hierarchy.refresh()
             with phase("HTPCoarseFactor", self.times, "cycle"):
-                self.scales = cycle.refreshed(self.pc, self.damping)
+                self.scales = cycle.refreshed(self.pc, self.damping, self.smoother)
             self.age += 1
             self.refresh_ms = sum(self.times.values())
             return
@@ -79,21 +87,25 @@ class MultilevelPC:
                 A = self.P = self.mat.createSubMatrix(self.order, self.order)
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
-            self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf)
+            self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
+                                       blocks=self.smoother == "leaves")
         with phase("HTPCoarseFactor", self.times, "cycle"):
-            self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping)
+            self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
         self.build_ms, self.refresh_ms = sum(self.times.values()), 0.0
 
     def moved(self, rows, penalty=None) -> bool:
         """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`) by more than
-        keeping them costs (:func:`..twolevel.spacereuse.keeps_leaves`: the extra iterations old leaves took, at
-        ms per iteration, against what a hierarchy made anew costs beyond one refreshed; ``penalty``, that cost
-        the last time values moved, where one solve alone tells none): a new analysis makes them anew. The
-        two-level method's rule: on new inclusions every frame (the foreign study's sequence mode) the V-cycles had
-        made every frame's hierarchy anew, 2 836 against its 2 084 ms a frame at 1M rows."""
+        keeping them costs: a new analysis makes them anew. Unlike the two-level method, whose analysis costs several
+        solves, old leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed,
+        which inclusions that moved cost twice over (1M rows, new inclusions every frame: 44 against 23 CG
+        iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the extra iterations old leaves took,
+        at ms per iteration, or ``penalty``, that cost the last time values moved) does keeping them win when it is
+        the smaller (:func:`..twolevel.spacereuse.stale_cost`)."""
         if self.weak is None or not self.weak.moved(rows):
             return False
-        return not keeps_leaves(self.build_ms - self.refresh_ms, self.leaf_its, self.ms_per_it, penalty)
+        cost = stale_cost(self.leaf_its, self.ms_per_it)
+        cost = penalty if cost is None else cost
+        return cost is None or cost > self.build_ms - self.refresh_ms
 
     def mult(self, x, y):
         """y = one V-cycle applied to x (in the leaves' order where reordered)."""
@@ -134,7 +146,7 @@ class MultilevelPC:
         not counted)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
-            mats += [level.B, level.W0, level.W]
+            mats += [m for m in (level.B, level.W0, level.W) if m is not None]
         mats += self.hierarchy.operators()[1:]
         total = sum(int(m.getInfo()["nz_used"]) for m in mats)
         pcs = [self.pc.getMGSmoother(level).getPC() for level in range(1, self.pc.getMGLevels())]
@@ -146,20 +158,17 @@ class MultilevelPC:
         h, t = self.hierarchy, self.times
         rows = " -> ".join(str(n) for n in h.rows())
         ratio = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
-        scales = ", ".join(f"{s:.2f}" for s in self.scales)
-        smoother = self.pc.getMGSmootherDown(1).getType() if self.pc.getMGLevels() > 1 else "none"
         return [f"levels: {len(h.rows())}, rows {rows} (the coarsest by {self.pc.getMGCoarseSolve().getPC().getType()}"
                 f"; at most {self.coarse_max} rows unless the levels ran out); "
                 f"operator complexity {h.complexity():.2f}",
                 f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"
                 + ("; each rank's rows taken in their leaves' order" if self.P is not None else "")
                 + "; coarse vectors: the leaf constants smoothed by one Jacobi step; smoother: "
-                + (f"one Richardson step with the leaf blocks' exact solves, scaled {scales or '-'} (largest eigenvalue "
-                   f"of s B^-1 A taken to {self.damping:g})" if smoother == "richardson" else
-                   f"{smoother} (the user's options), scaled {scales or '-'}"),
+                + cycle.described(self.pc, self.scales, self.damping),
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
-                + (f"; leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago (leaf blocks, "
-                   f"smoothed coarse vectors and Galerkin operators of the new values)" if self.age else ""),
+                + (f"; leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
+                   + ("leaf blocks, " if self.smoother == "leaves" else "")
+                   + "smoothed coarse vectors and Galerkin operators of the new values)" if self.age else ""),
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):

@@ -2,7 +2,6 @@
 :mod:`petsc_htp.multilevel`."""
 from __future__ import annotations
 
-from ..twolevel import nearnull
 from ..variants import TwoLevel
 from .setup import MultilevelPC
 
@@ -14,11 +13,13 @@ class Multilevel(TwoLevel):
     title = MultilevelPC.title
 
     def composed(self, mat, A, coords):
-        """The hierarchy's setup (coordinates are not used); a Mat with a block size or a near null space of its own
-        takes the two-level method, whose coarse space holds them (the levels' coarse vectors are constants)."""
-        if nearnull.attached(mat) or mat.getBlockSize() > 1:
-            self.note = ("multilevel takes scalar problems (constants as coarse vectors): the Mat's "
-                         + ("near null space" if nearnull.attached(mat) else f"block size {mat.getBlockSize()}")
-                         + " takes the two-level method")
+        """The hierarchy's setup (coordinates are not used; the graph's dimension picks the smoother); a Mat with a
+        block size or a near null space takes the two-level method, whose coarse space holds them (the levels' coarse
+        vectors are constants), as does a dense row (:func:`.choice.unscalar`)."""
+        from .choice import dimension, unscalar
+
+        why = unscalar(mat, A)
+        if why:
+            self.note = f"multilevel takes scalar problems (constants as coarse vectors): {why} takes the two-level method"
             return super().composed(mat, A, coords)
-        return MultilevelPC(mat, A, self.prefix + "htp_")
+        return MultilevelPC(mat, A, self.prefix + "htp_", dimension(mat, A, lambda: self.choice.block_shape(mat, A)))
