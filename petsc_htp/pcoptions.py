@@ -22,7 +22,7 @@ PATTERN_FIELDS = ("variant", "checkpoint", "device", "ordering", "aggregation", 
 
 HELP = {
     "variant": "paper (the paper's H-matrix M), twolevel (exact leaf solves + coarse space, SPD, float64) or "
-               "multilevel (leaf solves smoothing every level of an aggregation hierarchy; options -htp_ml_*)",
+               "multilevel (V-cycles on an aggregation hierarchy of leaves; options -htp_ml_*)",
     "checkpoint": "HTP checkpoint file (empty: the shipped petsc_htp/checkpoints/htp_default.pt)",
     "device": "torch device for the network and the apply: cpu, cuda[:k] or auto",
     "ordering": "auto (Morton with coordinates, else RCM for paper and aggregation for twolevel), aggregation "
@@ -90,7 +90,8 @@ MULTILEVEL_HELP = (    # read by petsc_htp.multilevel.setup.MultilevelPC (with P
     ("coarse_max", "int", 1000, "rows of the coarsest operator, solved by one LU"),
     ("max_levels", "int", 12, "levels at most, the coarsest included"),
     ("jacobi", "real", 1.4, "the coarse vectors' Jacobi step, over the Gershgorin bound of D^-1 A"),
-    ("damping", "real", 1.5, "the largest eigenvalue of s B^-1 A the smoothers' Richardson scale s takes, in (0, 2)"),
+    ("damping", "real", 1.5, "the largest eigenvalue of s M^-1 A the smoothers' Richardson scale s takes, in (0, 2) "
+     "(M: D, or the leaf blocks)"),
     ("smoother", "string", "auto", "jacobi (D^-1) or leaves (the leaf blocks' exact solves); auto: jacobi on a 2-D "
      "graph, else leaves"),
     ("reorder", "bool", "auto", "each rank's rows in their leaves' order; auto: where some rank's rows are not "
@@ -162,8 +163,8 @@ class HTPOptions:
         """Whether no option of the two-level method is set: its choices (a factor of the whole matrix, the multilevel
         V-cycles) then follow the problem."""
         return (self.leaf, self.ordering, self.aggregation, self.coarse, self.coarse_solver, self.overlap,
-                self.coarse_tol, self.coarse_rank, self.form, self.coarse_space_every) == (
-            0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0)
+                self.coarse_tol, self.coarse_rank, self.form, self.coarse_space_every, self.block_size) == (
+            0, "auto", "auto", "auto", "auto", 0, 0.0, 2, "auto", 0, 0)
 
     @property
     def probes(self) -> int:

@@ -113,7 +113,7 @@ class TwoLevel:
         if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
             from petsc4py import PETSc
 
-            from .multilevel.choice import serves
+            from .multilevel.choice import DIM, serves
 
             why = "" if PETSc.Options(self.prefix).hasName("htp_variant") else serves(
                 mat, A, lambda: self.choice.block_shape(mat, A))
@@ -121,7 +121,7 @@ class TwoLevel:
                 from .multilevel.setup import MultilevelPC
 
                 self.note = why
-                return MultilevelPC(mat, A, self.prefix + "htp_")
+                return MultilevelPC(mat, A, self.prefix + "htp_", DIM, reorder=False)   # serves: a local order
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)

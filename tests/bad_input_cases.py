@@ -221,8 +221,8 @@ def case_rank_without_rows_large():
 
 
 def case_rank_without_rows_twolevel():
-    """A 2-D Laplacian of 40 000 rows on the first rank alone: the two-level method on the ranks that own rows
-    (PCTELESCOPE moves them there)."""
+    """A 2-D Laplacian of 40 000 rows on the first rank alone: HTPPC on the ranks that own rows (PCTELESCOPE moves
+    them there; on one rank the multilevel V-cycles)."""
     side = 200
     T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (side, side))
     A = sp.kronsum(T, T).tocsr()

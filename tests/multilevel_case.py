@@ -1,23 +1,20 @@
 """Run under ``mpiexec -n 2`` by tests/test_multilevel.py: HTPPC as it comes takes the V-cycles for a 2-D DMDA matrix
-(MIN_ROWS lowered to its size), then new values change the nonzero mask on rank 0 only (one coupling set to an
+(40 000 rows, above MIN_ROWS), then new values change the nonzero mask on rank 0 only (one coupling set to an
 explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must make a new analysis and take
-the same method (the choice is collective: this had hung). Prints ``first <setup type> <its>`` and ``second <setup type> <its> <relres>``
-on rank 0."""
+the same method (the choice is collective: this had hung). Prints ``first <setup type> <its>`` and
+``second <setup type> <its> <relres>`` on rank 0."""
 import sys
 from pathlib import Path
 
 import petsc4py
 
 petsc4py.init(sys.argv[:1])
-import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from petsc_htp.multilevel import choice  # noqa: E402
 from petsc_htp.scenes.foreign import dmda  # noqa: E402
 from bad_input_cases import dist, rhs  # noqa: E402
 
-choice.MIN_ROWS = 30_000
 A, b = dmda(2, 200, 1e3, 0)
 mat = dist(A)
 db = PETSc.Options("mc_")

@@ -1055,9 +1055,9 @@ def _mpirun(ranks, script, *args):
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_runs_with_htppc_from_the_command_line(ranks):
     """examples/dmda_poisson.py: a plain PETSc DMDA program, HTPPC's two-level method chosen by options only, on 1 and
-    2 ranks (each rank aggregates its own rows). With standard second passes and the eig space each rank orders its own leaves'
-    coarse columns by METIS, those coupled to the other rank last (360^2: about 13 700 coarse rows in blocks of
-    2); the default's paired aggregates with one column each are ordered by PETSc's factor alone."""
+    2 ranks (each rank aggregates its own rows). With standard second passes and the eig space each rank orders its
+    own leaves' coarse columns by METIS, those coupled to the other rank last (360^2: about 13 700 coarse rows in
+    blocks of 2); the default's paired aggregates with one column each are ordered by PETSc's factor alone."""
     for flags, metis in ((("-htp_aggregation", "standard"), True), ((), False)):
         proc = _mpirun(ranks, EXAMPLE, "-n", "360", *HTPPC_FLAGS, "-htp_variant", "twolevel", *flags)
         assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -1,9 +1,9 @@
-"""The multilevel variant (``-htp_variant multilevel``): HTP's leaves and leaf solves at every level of a hierarchy.
+"""The multilevel variant (``-htp_variant multilevel``): HTP's leaves at every level of a hierarchy.
 
 Each level (:mod:`.level`) splits its operator's rows into aggregation leaves (strong couplings, compiled kernels,
 each rank its own rows), takes the leaf constants as coarse vectors, smooths them by one Jacobi step and forms the
 Galerkin operator W^T A W, which the next level splits again (:mod:`.hierarchy`), down to a coarse operator small
 enough for one sparse LU. PETSc's PCMG runs the V-cycle (:mod:`.cycle`): on each level one Richardson step
-preconditioned by the exact solves of the level's leaf blocks (one Cholesky factor of the block-diagonal leaf
-matrix per rank), damped where the leaf blocks overlap too much in A's energy; the sparse LU on the coarsest.
+preconditioned by D^-1 (2-D graphs) or by the exact solves of the level's leaf blocks (one Cholesky factor of the
+block-diagonal leaf matrix per rank; 3-D), damped by Lanczos' largest eigenvalue; the sparse LU on the coarsest.
 """

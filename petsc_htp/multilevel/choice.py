@@ -36,16 +36,17 @@ def serves(mat, rows, shape) -> str:
             f"least {MIN_ROWS}; -htp_variant twolevel keeps the two-level method)")
 
 
-def unscalar(mat, rows) -> str:
+def unscalar(mat, rows, option=0) -> str:
     """What keeps the V-cycles, whose coarse vectors are constants, from ``mat`` (this rank's ``rows``), or ''
-    (collective): a near null space of its own, a block size (the Mat's or its pattern's: :mod:`..twolevel.blocksize`,
-    elasticity handed over as a plain AIJ), or a dense row (:func:`..twolevel.graphshape.hub_rows`, more than sqrt(N)
-    entries: a constraint's or a ground node's), which the smoothed coarse vectors spread into dense Galerkin
-    operators (three hubs each coupled to 8 000 of a 200^2 grid's rows: 354 s)."""
+    (collective): a near null space of its own, a block size (``-htp_block_size``, ``option``, where set; else the
+    Mat's or its pattern's: :mod:`..twolevel.blocksize`, elasticity handed over as a plain AIJ), or a dense row
+    (:func:`..twolevel.graphshape.hub_rows`, more than sqrt(N) entries: a constraint's or a ground node's), which
+    the smoothed coarse vectors spread into dense Galerkin operators (three hubs each coupled to 8 000 of a 200^2
+    grid's rows: 354 s)."""
     coll = Collective(mat.getComm())
     if nearnull.attached(mat):
         return "the Mat's near null space"
-    bs, source = block_size(mat, rows, coll)
+    bs, source = block_size(mat, rows, coll, option)
     if bs > 1:
         return f"block size {bs} ({source})"
     if coll.any(hub_rows(rows.indptr, mat.getSize()[0] ** 0.5).any()):

@@ -8,9 +8,11 @@ of the levels' options, each level's up smoother is a KSP of its own sharing the
 the down one starts from zero and needs no product with A; any ``mg_levels_`` option of the user's makes one KSP serve
 both ways, as PCMG's default, so that it reaches both.
 
-Two smoothers (:data:`SMOOTHERS`): ``jacobi``, one Richardson step with D^-1 (no factor, no leaf-block matrix);
-``leaves``, one with the exact solves of the level's leaf blocks; both scaled by Lanczos. On 2-D graphs Jacobi costs less for the same iterations (the smoothed coarse vectors carry what the leaf
-solves added), in 3-D the leaf solves take fewer (see :func:`default_smoother`).
+Two smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``jacobi``, one Richardson step with D^-1 (no factor, no
+leaf-block matrix: the levels' options of the user's then act on the level's operator); ``leaves``, one with the
+exact solves of the level's leaf blocks; both scaled by Lanczos. On 2-D graphs Jacobi costs less for the same
+iterations (the smoothed coarse vectors carry what the leaf solves added), in 3-D the leaf solves take fewer (see
+:func:`default_smoother`).
 """
 from __future__ import annotations
 
@@ -18,12 +20,12 @@ from petsc4py import PETSc
 
 from ..twolevel.inner import scoped, set_up
 
-DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s B^-1 A down to this
-LANCZOS_STEPS = 6       # CG steps for that eigenvalue (each: a product with A and a leaf solve), as PETSc's Chebyshev
+DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s M^-1 A down to this
+LANCZOS_STEPS = 6       # CG steps for that eigenvalue (each: a product with A and one with M^-1), as PETSc's Chebyshev
 SAFETY = 1.1            # ... and the factor on CG's estimate
 SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
 SMOOTHERS = ("jacobi", "leaves")
-JACOBI = {1: {"pc_type": "jacobi"}, 2: {"pc_type": "jacobi"}}
+DIAGONAL = {"pc_type": "jacobi"}
 LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},
               2: {"pc_type": "bjacobi", "sub_pc_type": "cholesky", "sub_pc_factor_mat_ordering_type": "natural",
                   "sub_pc_factor_shift_type": "nonzero"}}
@@ -44,7 +46,7 @@ def default_smoother(dim) -> str:
 def defaults(prefix, ranks, smoother="leaves") -> dict:
     """The PCMG's defaults under ``prefix`` on ``ranks`` (1, or 2 for several) with ``smoother`` (one of
     :data:`SMOOTHERS`): PCMG's distinct up smoothers unless the user set a levels' option."""
-    solve = (JACOBI if smoother == "jacobi" else LEAF_SOLVE)[ranks]
+    solve = DIAGONAL if smoother == "jacobi" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()}
     out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items()})
     if not any(name.startswith(prefix + "mg_levels_") for name in PETSc.Options().getAll()):
@@ -109,14 +111,17 @@ def described(pc, scales, damping) -> str:
         return "none"
     ksp = pc.getMGSmootherDown(1)
     kind, solve = ksp.getType(), ksp.getPC().getType()
+    A, P = ksp.getOperators()
     scaled = ", ".join(f"{s:.2f}" for s in scales) or "-"
     if kind != PETSc.KSP.Type.RICHARDSON:
         return f"{kind} (the user's options), scaled {scaled}"
     if solve == PETSc.PC.Type.JACOBI:
         what, op = "D^-1 (Jacobi)", "D^-1 A"
-    else:
-        what = "the leaf blocks' exact solves" if solve in ("cholesky", "bjacobi") else f"{solve} (the user's options)"
+    elif P.handle != A.handle:                              # the leaf-block matrix
+        what = "the leaf blocks' exact solves" if solve in ("cholesky", "bjacobi") else f"{solve} of the leaf blocks"
         op = "B^-1 A"
+    else:
+        what, op = f"{solve} of the level's operator (the user's options)", "M^-1 A"
     return f"one Richardson step with {what}, scaled {scaled} (largest eigenvalue of s {op} taken to {damping:g})"
 
 
@@ -154,6 +159,9 @@ def _largest(smoother) -> float:
         est.setConvergenceTest(lambda *args: 0)
         est.setComputeSingularValues(True)
         b.setRandom()
+        null = A.getNullSpace()
+        if null.handle:             # b in A's range: KSPSolve projects it only where A is flagged symmetric, which
+            null.remove(b)          # new values (MatSetValues) unset: a Neumann frame's estimate was 4.5 x too large
         est.solve(b, x)
         return SAFETY * est.computeExtremeSingularValues()[0]
     finally:

@@ -28,8 +28,8 @@ class Hierarchy:
             self.coarsest = level.coarse()
 
     def refresh(self):
-        """New values of the finest operator (same pattern): every level's leaf blocks, smoothed coarse vectors and
-        Galerkin operator anew, in the matrices made before; the leaves kept."""
+        """New values of the finest operator (same pattern): every level's leaf blocks (where made), smoothed coarse
+        vectors and Galerkin operator anew, in the matrices made before; the leaves kept."""
         ops = self.operators()
         for level, below in zip(self.levels, ops[1:]):
             level.refresh()

@@ -1,5 +1,5 @@
-"""One level of the hierarchy: its leaves, the leaf-block matrix its smoother factors, its smoothed coarse space and
-the Galerkin operator of the next level.
+"""One level of the hierarchy: its leaves, the leaf-block matrix the leaf solves' smoother factors, its smoothed
+coarse space and the Galerkin operator of the next level.
 
 All of a level's products run in PETSc (MatMatMult, MatPtAP) on any number of ranks; the leaves are each rank's
 own (PyAMG's compiled strength and aggregation kernels on the rank's diagonal block), so a leaf never spans ranks
@@ -41,8 +41,8 @@ class Level:
         return self.A.ptap(self.W) if into is None else self.A.ptap(self.W, result=into)
 
     def refresh(self):
-        """The leaf-block matrix (where held) and the smoothed coarse vectors from the operator's new values (same pattern, so
-        both keep theirs); the leaves are kept."""
+        """The leaf-block matrix (where held) and the smoothed coarse vectors from the operator's new values (same
+        pattern, so both keep theirs); the leaves are kept."""
         start = self.A.getOwnershipRange()[0]
         with local_rows(self.A) as rows:
             values = None if self.B is None else rows.data[self.inside]

@@ -25,12 +25,13 @@ RENEW = 1.5             # a solve taking this many times the first one's iterati
 class MultilevelPC:
     """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` (this rank's ``rows``; its graph of dimension ``dim``)
     under the options ``prefix`` + ``ml_`` (PCMG's, and ``coarse_max``, ``max_levels``: :mod:`.hierarchy`;
-    ``jacobi``: :mod:`.level`; ``damping``, ``smoother``: :mod:`.cycle`; ``reorder``: :meth:`numeric`)."""
+    ``jacobi``: :mod:`.level`; ``damping``, ``smoother``: :mod:`.cycle`; ``reorder``: :meth:`numeric`, auto unless
+    set: the ``reorder`` given, where known, else found)."""
 
-    title = "multilevel preconditioner: leaf solves smoothing every level of an aggregation hierarchy (PCMG)"
+    title = "multilevel preconditioner: V-cycles on an aggregation hierarchy of leaves (PCMG)"
     whole = False
 
-    def __init__(self, mat, rows, prefix, dim=2):
+    def __init__(self, mat, rows, prefix, dim, reorder=None):
         t0 = time.perf_counter()
         self.mat, self.prefix = mat, prefix + "ml_"
         db = PETSc.Options(self.prefix)
@@ -40,8 +41,11 @@ class MultilevelPC:
         self.jacobi = db.getReal("jacobi", JACOBI)
         self.smoother = db.getString("smoother", "auto")
         self.smoother = cycle.default_smoother(dim) if self.smoother == "auto" else self.smoother
-        self.reorder = db.getBool("reorder") if db.hasName("reorder") else Collective(mat.getComm()).any(
-            not local_order(rows, mat.getOwnershipRange()[0]))
+        if db.getString("reorder", "auto").lower() != "auto":
+            reorder = db.getBool("reorder")
+        elif reorder is None:               # collective: createSubMatrix on every rank or none
+            reorder = Collective(mat.getComm()).any(not local_order(rows, mat.getOwnershipRange()[0]))
+        self.reorder = reorder
         if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2 or not self.jacobi > 0:
             raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1, "
                              f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
@@ -59,9 +63,9 @@ class MultilevelPC:
         default where some rank's rows are not in a local order, :func:`.choice.local_order`) on its copy with each
         rank's rows in the order of their leaves, so that a leaf's rows lie together whatever the user's numbering
         (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against 1 235 ms; the 2-D DMDA at 1M rows,
-        its own order: 2 908 against 3 180). New values of the pattern keep the leaves (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved
-        away from them (:meth:`moved`, a new analysis) or a solve took more than :data:`RENEW` times the iterations of
-        the first on them."""
+        its own order: 2 908 against 3 180). New values of the pattern keep the leaves
+        (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a new analysis) or a
+        solve took more than :data:`RENEW` times the iterations of the first on them."""
         self.times = {}
         self.range = range_check(self.mat, rows)
         if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
@@ -142,8 +146,8 @@ class MultilevelPC:
     @property
     def nbytes(self) -> int:
         """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, every level's leaf
-        blocks, coarse spaces and coarse operator, the leaf factors and the coarse LU (PCREDUNDANT's gathered one
-        not counted)."""
+        blocks (where made), coarse spaces and coarse operator, the smoothers' factors (the leaf solves') and the
+        coarse LU (PCREDUNDANT's gathered one not counted)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
             mats += [m for m in (level.B, level.W0, level.W) if m is not None]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..variants import TwoLevel
+from .choice import dimension, unscalar
 from .setup import MultilevelPC
 
 
@@ -16,10 +17,10 @@ class Multilevel(TwoLevel):
         """The hierarchy's setup (coordinates are not used; the graph's dimension picks the smoother); a Mat with a
         block size or a near null space takes the two-level method, whose coarse space holds them (the levels' coarse
         vectors are constants), as does a dense row (:func:`.choice.unscalar`)."""
-        from .choice import dimension, unscalar
-
-        why = unscalar(mat, A)
+        why = unscalar(mat, A, self.opts.block_size)
+        self.title = TwoLevel.title if why else MultilevelPC.title          # what -ksp_view's title names
         if why:
-            self.note = f"multilevel takes scalar problems (constants as coarse vectors): {why} takes the two-level method"
+            self.note = (f"multilevel takes scalar problems (constants as coarse vectors): {why} takes the two-level "
+                         "method")
             return super().composed(mat, A, coords)
         return MultilevelPC(mat, A, self.prefix + "htp_", dimension(mat, A, lambda: self.choice.block_shape(mat, A)))
