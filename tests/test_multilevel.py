@@ -182,8 +182,9 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     """New values of the pattern that keep the couplings' strengths (the matrix times 2, then rows and columns
     scaled by 1 % at random) keep every level's leaves, with the leaf blocks, smoothed coarse vectors and Galerkin
     operators of the new values, and their iterations; inclusions that moved after solves that cost the old leaves
-    no extra iteration are tried on them, where CG takes more iterations; a solve that took more than RENEW times
-    the first one's makes the next numeric step build the hierarchy anew (here on the moved values: fewer
+    no extra iteration are tried on them, where CG takes a few more iterations (the coarser levels, made anew from
+    the finest level's new Galerkin operator, follow the new values); a solve that took more than RENEW times
+    the first one's makes the next numeric step build the hierarchy anew (here on the moved values: no more
     iterations), and a move whose cost is known to exceed a new hierarchy's makes a new analysis, as does one
     after a single solve (no cost measured: unlike the two-level method's, old leaves are not tried)."""
     from petsc_htp.multilevel import setup
@@ -208,10 +209,10 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
         assert abs(its2 - its) <= 1 and f"kept from {age} numeric setup" in text and ctx.analysis_count == 1
     moved, _ = foreign.dmda(2, 128, 1e3, 1)
     its3, text = frame(moved.data)
-    assert its3 > its + 2 and "kept from 3 numeric setups" in text and ctx.analysis_count == 1
+    assert its + 1 <= its3 <= its + 4 and "kept from 3 numeric setups" in text and ctx.analysis_count == 1
     ctx.setup.its = int(setup.RENEW * ctx.setup.first_its) + 1             # as if that solve had taken that many
     its4, text = frame(moved.data)
-    assert its4 < its3 and "kept from" not in text and ctx.analysis_count == 1      # built anew
+    assert its4 <= its3 and "kept from" not in text and ctx.analysis_count == 1      # built anew
     ctx.setup.leaf_its, ctx.setup.ms_per_it = [its4, its4 + 1000], 1e3      # as if old leaves had cost 1 000 s
     again, _ = foreign.dmda(2, 128, 1e3, 2)
     frame(again.data)

@@ -96,15 +96,6 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
     return pc, scales
 
 
-def refreshed(pc, damping=DAMPING, smoother="leaves") -> list:
-    """Set the PCMG ``pc`` up again on its operators' new values (each level's factor and the coarse
-    LU anew) and damp its smoothers again; returns the scales, finest first."""
-    prefix = pc.getOptionsPrefix()
-    with scoped(prefix, defaults(prefix, 1 if pc.getComm().getSize() == 1 else 2, smoother)):
-        pc.setUp()
-        return [_damped(pc, level, damping) for level in range(pc.getMGLevels() - 1, 0, -1)]
-
-
 def described(pc, scales, damping) -> str:
     """What the smoothers of ``pc`` are, for ``-ksp_view``, with their ``scales``."""
     if pc.getMGLevels() < 2:

@@ -16,10 +16,15 @@ class Hierarchy:
     leaf-block matrix made (the leaf solves' smoother)."""
 
     def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True):
-        self.levels = []
-        self.coarsest = A
+        self.levels, self.coarsest = [], A
+        self.sizes, self.jacobi, self.blocks = (coarse_max, max_levels), jacobi, blocks
+        self._grow(leaf)
+
+    def _grow(self, leaf=None):
+        """Levels under :attr:`coarsest` until it is small enough (``leaf``: its leaves where found)."""
+        coarse_max, max_levels = self.sizes
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
-            level = Level(self.coarsest, jacobi, None if self.levels else leaf, blocks)
+            level = Level(self.coarsest, self.jacobi, None if self.levels else leaf, self.blocks)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.destroy()
@@ -28,12 +33,22 @@ class Hierarchy:
             self.coarsest = level.coarse()
 
     def refresh(self):
-        """New values of the finest operator (same pattern): every level's leaf blocks (where made), smoothed coarse
-        vectors and Galerkin operator anew, in the matrices made before; the leaves kept."""
+        """New values of the finest operator (same pattern): the finest level's leaf blocks (where made), smoothed
+        coarse vectors and Galerkin operator anew in the matrices made before, its leaves kept; the coarser levels
+        made anew from that operator (their leaves follow its new values: log-normal fields of a new seed each
+        frame, 65 536 rows, took 29, 32 and 40 CG iterations with every level's leaves kept, 25, 20 and 23 so)."""
+        if not self.levels:
+            return
         ops = self.operators()
-        for level, below in zip(self.levels, ops[1:]):
-            level.refresh()
-            level.coarse(into=below)
+        first = self.levels[0]
+        first.refresh()
+        below = first.coarse(into=ops[1])
+        for A in ops[2:]:
+            A.destroy()
+        for level in self.levels[1:]:
+            level.destroy()
+        self.levels, self.coarsest = self.levels[:1], below
+        self._grow()
 
     def operators(self) -> list:
         """Each level's operator, then the coarsest."""

@@ -74,7 +74,8 @@ class MultilevelPC:
                     self.mat.createSubMatrix(self.order, self.order, submat=self.P)
                 self.hierarchy.refresh()
             with phase("HTPCoarseFactor", self.times, "cycle"):
-                self.scales = cycle.refreshed(self.pc, self.damping, self.smoother)
+                self.pc.destroy()
+                self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
             self.age += 1
             self.refresh_ms = sum(self.times.values())
             return
@@ -170,9 +171,10 @@ class MultilevelPC:
                 + "; coarse vectors: the leaf constants smoothed by one Jacobi step; smoother: "
                 + cycle.described(self.pc, self.scales, self.damping),
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
-                + (f"; leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
+                + (f"; finest leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
                    + ("leaf blocks, " if self.smoother == "leaves" else "")
-                   + "smoothed coarse vectors and Galerkin operators of the new values)" if self.age else ""),
+                   + "smoothed coarse vectors and Galerkin operator of the new values; the coarser levels made anew)"
+                   if self.age else ""),
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):
