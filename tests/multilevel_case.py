@@ -2,7 +2,8 @@
 (40 000 rows, above MIN_ROWS), then new values change the nonzero mask on rank 0 only (one coupling set to an
 explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must make a new analysis and take
 the same method (the choice is collective: this had hung). Prints ``first <setup type> <its>`` and
-``second <setup type> <its> <relres>`` on rank 0."""
+``second <setup type> <its> <relres>`` on rank 0; then the matrix times 2 (a refresh of the kept hierarchy on both
+ranks): ``third <setup type> <its> <relres> <age>``."""
 import sys
 from pathlib import Path
 
@@ -42,3 +43,10 @@ mat.mult(x, r)
 r.aypx(-1.0, bv)
 PETSc.Sys.Print("second", type(ksp.getPC().getPythonContext().setup).__name__, ksp.getIterationNumber(),
                 f"{r.norm() / bv.norm():.1e}")
+mat.scale(2.0)                                            # new values on every rank, the pattern kept: a refresh
+x.set(0.0)
+ksp.solve(bv, x)
+mat.mult(x, r)
+r.aypx(-1.0, bv)
+setup = ksp.getPC().getPythonContext().setup
+PETSc.Sys.Print("third", type(setup).__name__, ksp.getIterationNumber(), f"{r.norm() / bv.norm():.1e}", setup.age)

@@ -180,8 +180,8 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
 
 def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     """New values of the pattern that keep the couplings' strengths (the matrix times 2, then rows and columns
-    scaled by 1 % at random) keep every level's leaves, with the leaf blocks, smoothed coarse vectors and Galerkin
-    operators of the new values, and their iterations; inclusions that moved after solves that cost the old leaves
+    scaled by 1 % at random) keep the finest level's leaves, with its smoothed coarse vectors and Galerkin operator
+    of the new values (the coarser levels made anew), and their iterations; inclusions that moved after solves that cost the old leaves
     no extra iteration are tried on them, where CG takes a few more iterations (the coarser levels, made anew from
     the finest level's new Galerkin operator, follow the new values); a solve that took more than RENEW times
     the first one's makes the next numeric step build the hierarchy anew (here on the moved values: no more
@@ -209,7 +209,7 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
         assert abs(its2 - its) <= 1 and f"kept from {age} numeric setup" in text and ctx.analysis_count == 1
     moved, _ = foreign.dmda(2, 128, 1e3, 1)
     its3, text = frame(moved.data)
-    assert its + 1 <= its3 <= its + 4 and "kept from 3 numeric setups" in text and ctx.analysis_count == 1
+    assert its3 <= its + 4 and "kept from 3 numeric setups" in text and ctx.analysis_count == 1
     ctx.setup.its = int(setup.RENEW * ctx.setup.first_its) + 1             # as if that solve had taken that many
     its4, text = frame(moved.data)
     assert its4 <= its3 and "kept from" not in text and ctx.analysis_count == 1      # built anew
@@ -238,7 +238,8 @@ def test_help_lists_the_multilevel_options_with_their_defaults():
 
 def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
     """2 ranks, the V-cycles chosen as it comes, then new values that change the nonzero mask on rank 0 only: both
-    ranks make the V-cycles anew together (the choice had split: a hang) and CG converges."""
+    ranks make the V-cycles anew together (the choice had split: a hang) and CG converges; then the matrix times 2
+    on both: the finest leaves kept and the coarser levels made anew on both ranks, with the same iterations."""
     mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "multilevel_case.py")], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
@@ -246,6 +247,9 @@ def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
     assert re.search(r"^first MultilevelPC \d+$", out.stdout, re.M), out.stdout
     second = re.search(r"^second (\w+) (\d+) (\S+)$", out.stdout, re.M)
     assert second and second.group(1) == "MultilevelPC" and float(second.group(3)) <= 1.01e-8, out.stdout
+    third = re.search(r"^third (\w+) (\d+) (\S+) (\d+)$", out.stdout, re.M)      # values alone: a refresh on 2 ranks
+    assert third and third.group(4) == "1" and float(third.group(3)) <= 1.01e-8, out.stdout
+    assert abs(int(third.group(2)) - int(second.group(2))) <= 1, out.stdout
 
 
 def test_new_values_of_a_singular_matrix_keep_the_smoothers_scale():

@@ -63,18 +63,19 @@ class MultilevelPC:
         default where some rank's rows are not in a local order, :func:`.choice.local_order`) on its copy with each
         rank's rows in the order of their leaves, so that a leaf's rows lie together whatever the user's numbering
         (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against 1 235 ms; the 2-D DMDA at 1M rows,
-        its own order: 2 908 against 3 180). New values of the pattern keep the leaves
-        (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a new analysis) or a
+        its own order: 2 908 against 3 180). New values of the pattern keep the finest level's leaves and make the
+        coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a new analysis) or a
         solve took more than :data:`RENEW` times the iterations of the first on them."""
         self.times = {}
         self.range = range_check(self.mat, rows)
         if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
+            self.pc.destroy()               # first: the old coarser levels it holds go before the new are made
+            self.pc = None
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
                     self.mat.createSubMatrix(self.order, self.order, submat=self.P)
                 self.hierarchy.refresh()
             with phase("HTPCoarseFactor", self.times, "cycle"):
-                self.pc.destroy()
                 self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
             self.age += 1
             self.refresh_ms = sum(self.times.values())
@@ -96,14 +97,14 @@ class MultilevelPC:
                                        blocks=self.smoother == "leaves")
         with phase("HTPCoarseFactor", self.times, "cycle"):
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
-        self.build_ms, self.refresh_ms = sum(self.times.values()), 0.0
+        self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
 
     def moved(self, rows, penalty=None) -> bool:
         """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`) by more than
         keeping them costs: a new analysis makes them anew. Unlike the two-level method, whose analysis costs several
         solves, old leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed,
-        which inclusions that moved cost twice over (1M rows, new inclusions every frame: 44 against 23 CG
-        iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the extra iterations old leaves took,
+        which inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept
+        as at commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the extra iterations old leaves took,
         at ms per iteration, or ``penalty``, that cost the last time values moved) does keeping them win when it is
         the smaller (:func:`..twolevel.spacereuse.stale_cost`)."""
         if self.weak is None or not self.weak.moved(rows):
