@@ -163,7 +163,8 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     assert reason > 0 and "form:" in lines(ksp) and not ksp.getPC().getPythonContext().variant.note
     mat = _mat(A)
     with local_rows(mat) as rows:
-        assert choice.serves(mat, rows, lambda: graph_shape(rows, want_weak=False, samples=8)) and choice.local_order(rows, 0)
+        shape = graph_shape(rows, want_weak=False, samples=8)
+        assert choice.serves(mat, rows, lambda: shape) and choice.local_order(rows, 0)
         rng = np.random.default_rng(0)
         p = rng.permutation(A.shape[0])
         shuffled = A[p][:, p].tocsr()
@@ -181,8 +182,8 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
 def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     """New values of the pattern that keep the couplings' strengths (the matrix times 2, then rows and columns
     scaled by 1 % at random) keep the finest level's leaves, with its smoothed coarse vectors and Galerkin operator
-    of the new values (the coarser levels made anew), and their iterations; inclusions that moved after solves that cost the old leaves
-    no extra iteration are tried on them, where CG takes a few more iterations (the coarser levels, made anew from
+    of the new values (the coarser levels made anew), and their iterations; inclusions that moved after solves that
+    cost the old leaves no extra iteration are tried on them, where CG takes a few more iterations (the coarser levels, made anew from
     the finest level's new Galerkin operator, follow the new values); a solve that took more than RENEW times
     the first one's makes the next numeric step build the hierarchy anew (here on the moved values: no more
     iterations), and a move whose cost is known to exceed a new hierarchy's makes a new analysis, as does one

@@ -125,11 +125,11 @@ def _damped(pc, level, damping) -> float:
     smoother = pc.getMGSmootherDown(level)
     if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
         return 1.0
+    generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
+    if PETSc.Options().hasName(generic):                   # the user's, for every level: no estimate
+        return PETSc.Options().getReal(generic)
     top = _largest(smoother)
     scale = min(1.0, damping / top) if top > 0 else 1.0
-    generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
-    if PETSc.Options().hasName(generic):                   # the user's, for every level
-        return PETSc.Options().getReal(generic)
     for ksp in {smoother.handle: smoother, pc.getMGSmootherUp(level).handle: pc.getMGSmootherUp(level)}.values():
         with scoped(ksp.getOptionsPrefix(), {"ksp_richardson_scale": str(scale)}):
             ksp.setFromOptions()

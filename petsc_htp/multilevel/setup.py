@@ -64,8 +64,8 @@ class MultilevelPC:
         rank's rows in the order of their leaves, so that a leaf's rows lie together whatever the user's numbering
         (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against 1 235 ms; the 2-D DMDA at 1M rows,
         its own order: 2 908 against 3 180). New values of the pattern keep the finest level's leaves and make the
-        coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a new analysis) or a
-        solve took more than :data:`RENEW` times the iterations of the first on them."""
+        coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a
+        new analysis) or a solve took more than :data:`RENEW` times the iterations of the first on them."""
         self.times = {}
         self.range = range_check(self.mat, rows)
         if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
@@ -104,9 +104,9 @@ class MultilevelPC:
         keeping them costs: a new analysis makes them anew. Unlike the two-level method, whose analysis costs several
         solves, old leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed,
         which inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept
-        as at commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the extra iterations old leaves took,
-        at ms per iteration, or ``penalty``, that cost the last time values moved) does keeping them win when it is
-        the smaller (:func:`..twolevel.spacereuse.stale_cost`)."""
+        as at commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was
+        measured (the extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time
+        values moved) does keeping them win when it is the smaller (:func:`..twolevel.spacereuse.stale_cost`)."""
         if self.weak is None or not self.weak.moved(rows):
             return False
         cost = stale_cost(self.leaf_its, self.ms_per_it)
