@@ -1,7 +1,9 @@
 #!/bin/bash
-# The CUDA-Graph fast path on a lent GPU (2026-11-28, through the device tool, from the repository root; the pyamg
-# 5.4.1 cp312 wheel carried in .whl/, see results/bench-20261126gpu/run.sh). Code of the commit named in gpu.txt:
-# the run of results/bench-20261126gpu4 (ff06717) after the two-level and multilevel changes since.
+# The CUDA-Graph fast path on a lent GPU (2026-11-28, through the device tool, from the repository root; code of the
+# commit named in gpu.txt). A pyamg 5.4.1 cp312 wheel travels in .whl/ (carry: [".whl"]), fetched here with
+# `pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp
+#  --platform manylinux_2_28_x86_64 -d .whl pyamg==5.4.1`. The run of bench-20261126gpu4 (ff06717, in the git
+# history) after the two-level and multilevel changes since.
 set -o pipefail
 export PYTHONUNBUFFERED=1
 python3 -m pip install --no-deps --no-index -q .whl/pyamg-*.whl
