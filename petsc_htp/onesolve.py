@@ -1,4 +1,4 @@
-"""Timed KSP solves as the example programs report them."""
+"""Timed KSP solves as the example programs and the ``scale`` study's worker report them."""
 from __future__ import annotations
 
 import time
@@ -8,7 +8,8 @@ from petsc4py import PETSc
 
 def timed_solve(ksp, rhs, x) -> tuple:
     """KSPSetUp, then KSPSolve of ``rhs`` into ``x`` (its start as it is), timed; (iterations, PETSc's reason,
-    KSPSetUp ms, KSPSolve ms, true relative residual ||b - A x|| / ||b||)."""
+    KSPSetUp ms, KSPSolve ms, true relative residual ||b - A x|| / ||b||). Every rank's clock starts together."""
+    ksp.getComm().barrier()
     t0 = time.perf_counter()
     ksp.setUp()
     t1 = time.perf_counter()
@@ -22,16 +23,30 @@ def timed_solve(ksp, rhs, x) -> tuple:
     return ksp.getIterationNumber(), ksp.getConvergedReason(), 1e3 * (t1 - t0), 1e3 * (t2 - t1), relres
 
 
-def solve_once(mat, rhs) -> tuple:
-    """:func:`timed_solve` from zero with a fresh KSP on ``mat`` (both operators) configured by the options
-    database."""
+def solve_frames(mat, rhs, frames=0, refill=None, prefix="") -> list:
+    """:func:`timed_solve` of frame 0 and of ``frames`` more, each from zero, with one KSP on ``mat`` (both
+    operators) configured by the options database under ``prefix``; before frame k > 0 ``refill(k)`` puts its new
+    values into ``mat`` (the KSP then sets its preconditioner up again, as a simulation's next frame does).
+    Frame 0 is a fresh KSP's single solve."""
     x = rhs.duplicate()
     ksp = PETSc.KSP().create(mat.getComm())
+    ksp.setOptionsPrefix(prefix)
     ksp.setOperators(mat, mat)
     ksp.setFromOptions()
-    x.set(0.0)
+    out = []
     try:
-        return timed_solve(ksp, rhs, x)
+        for k in range(frames + 1):
+            if k:
+                refill(k)
+            x.set(0.0)
+            out.append(timed_solve(ksp, rhs, x))
+        return out
     finally:
         ksp.destroy()
         x.destroy()
+
+
+def solve_once(mat, rhs) -> tuple:
+    """:func:`timed_solve` from zero with a fresh KSP on ``mat`` (both operators) configured by the options
+    database."""
+    return solve_frames(mat, rhs)[0]

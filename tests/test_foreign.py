@@ -1157,11 +1157,13 @@ def test_scaling_quotients_tell_the_smoother_piece_vector():
 
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ranks):
-    """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (the same operator as the
-    balls' 7-point stencil in natural order, checked by a product on every rank: tests/dmda3d_case.py), and HTPPC
-    solves it from the command line, the graph read as 3-D."""
-    proc = _mpirun(ranks, Path(__file__).parent / "dmda3d_case.py")
-    assert proc.returncode == 0 and proc.stdout.count("same operator") == ranks, proc.stdout + proc.stderr
+    """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (:mod:`petsc_htp.scenes.dmda`: the
+    balls' 7-point stencil, and in 2-D the discs' 5-point one, in natural order, also after new values of another
+    seed, checked by a product on every rank: tests/dmda_case.py), and HTPPC solves it from the command line, the
+    graph read as 3-D."""
+    for dim in ("2", "3"):
+        proc = _mpirun(ranks, Path(__file__).parent / "dmda_case.py", dim)
+        assert proc.returncode == 0 and proc.stdout.count("same operator") == ranks, proc.stdout + proc.stderr
     proc = _mpirun(ranks, EXAMPLE, "-dim", "3", "-n", "24", *HTPPC_FLAGS)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])

@@ -24,7 +24,7 @@ def save(path, A, b):
     np.savez(path, data=A.data, indices=A.indices, indptr=A.indptr, shape=A.shape, b=b)
 
 
-def _status_mb(field) -> float:
+def status_mb(field) -> float:
     """``VmRSS`` or ``VmHWM`` (peak) of this process from /proc, in MiB (the peak since start without /proc)."""
     try:
         with open("/proc/self/status") as fh:
@@ -36,7 +36,7 @@ def _status_mb(field) -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _reset_peak():
+def reset_peak():
     """Start the peak resident memory (VmHWM) over from the current one (Linux: /proc/self/clear_refs), so that
     the peak after the solve is the solve's and not the imports'."""
     try:
@@ -67,15 +67,15 @@ def main(argv=None) -> int:
     A = sp.csr_matrix((z["data"], z["indices"], z["indptr"]), shape=tuple(z["shape"]))
     method = resolve_method(args.method)
     loaded = load(method, htp_options(threads=args.threads)) if method.is_petsc else None
-    _reset_peak()
-    baseline = _status_mb("VmRSS")
+    reset_peak()
+    baseline = status_mb("VmRSS")
     try:
         row = solve_method(method, method.prefix, Problem(bare_frame(A, z["b"], args.case), case=args.case, attach=False),
                      False)
     finally:
         if loaded is not None:
             loaded.__exit__(None, None, None)
-    row.update(import_ms=import_ms, baseline_mb=baseline, peak_rss_mb=_status_mb("VmHWM"))
+    row.update(import_ms=import_ms, baseline_mb=baseline, peak_rss_mb=status_mb("VmHWM"))
     print(json.dumps(row))
     return 0
 

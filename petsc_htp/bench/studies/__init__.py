@@ -7,7 +7,7 @@ module's name to :data:`ORDER`, the order of the CLI, the report and README.
 """
 from importlib import import_module
 
-ORDER = ("table", "sequence", "defaults", "bare", "foreign", "curves", "scaling", "stability", "generalization", "size", "rank", "profile", "fastpath",
+ORDER = ("table", "sequence", "defaults", "bare", "foreign", "scale", "curves", "scaling", "stability", "generalization", "size", "rank", "profile", "fastpath",
          "simulation")
 STUDIES = {s.name: s for s in (import_module(f"{__name__}.{module}").STUDY for module in ORDER)}
 
