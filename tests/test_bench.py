@@ -572,3 +572,28 @@ def test_gamg_sweep_points_load_the_default_file_with_threshold_and_aggressive_l
         ("GAMG", "cg_gamg_default"), ("GAMG", "cg_gamg_default"), ("AMGCL", "amgcl"), ("pyamg", "pyamg"), None]
     with pytest.raises(ValueError, match="unknown method"):
         resolve_method("gamg_tx_a1")
+
+
+def test_scale_study_runs_the_dmda_program_on_one_and_two_ranks(env, tmp_path):
+    """The scale study: one mpiexec process per method, grid and rank count (bench/dmdarun.py), a single solve and a
+    sequence frame each, AMGCL on one rank only (and refused by name on two), every solve to the tolerance."""
+    from petsc_htp.bench.studies.scale import run
+
+    out = tmp_path / "scale"
+    assert main(["--quick", "--out", str(out), "--studies", "scale", "--methods", "cg_htp", "cg_gamg", "amgcl",
+                 "--scale-sides-2d", "48", "64", *env["common"]]) == 0
+    rows = rows_of(out, "scale")
+    runs = {(r["dim"], r["side"], r["ranks"], r["method"]) for r in rows}
+    grids = [(2, 48), (2, 64), (3, 10)]
+    assert runs == {(d, s, k, m) for d, s in grids for k in (1, 2) for m in ("cg_htp", "cg_gamg", "amgcl")
+                    if k == 1 or m != "amgcl"}, runs
+    for r in rows:
+        assert r["ok"] and r["relres"] <= 1e-7 and r["n"] == r["side"] ** r["dim"], r
+        assert r["mode"] == ("single" if r["frame"] == 0 else "sequence") and r["frame"] in (0, 1)
+        assert r["peak_rss_mb"] >= r["peak_rank_mb"] * r["ranks"] * 0.5 > 0 and r["solve_rss_mb"] > 0
+    assert any(r["iterations"] > 0 for r in rows if r["method"] == "cg_htp")
+    report = (out / "report.md").read_text()
+    assert "## At scale: the DMDA program on 1 and several ranks" in report and "| N = 2 304 | N = 4 096 |" in report
+    assert "| 2-D, 2 ranks | 2 304 |" in report and "not run" in report and (out / "scale.png").stat().st_size
+    failed, = run(resolve_method("amgcl"), 2, 48, 2, 0, 1)
+    assert not failed["ok"] and "amgcl is a serial solver: run it on one rank" in failed["error"], failed

@@ -1156,18 +1156,20 @@ def test_scaling_quotients_tell_the_smoother_piece_vector():
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
-def test_the_dmda_example_in_3d_assembles_the_7_point_operator_on_every_rank(ranks):
+def test_the_dmda_example_assembles_its_operator_on_every_rank_and_solves_frames(ranks):
     """examples/dmda_poisson.py -dim 3: each rank sets its own rows by whole arrays (:mod:`petsc_htp.scenes.dmda`: the
     balls' 7-point stencil, and in 2-D the discs' 5-point one, in natural order, also after new values of another
     seed, checked by a product on every rank: tests/dmda_case.py), and HTPPC solves it from the command line, the
-    graph read as 3-D."""
+    graph read as 3-D, then a second frame (``-frames 1``: the next seed's balls in the same Mat and KSP)."""
     for dim in ("2", "3"):
         proc = _mpirun(ranks, Path(__file__).parent / "dmda_case.py", dim)
         assert proc.returncode == 0 and proc.stdout.count("same operator") == ranks, proc.stdout + proc.stderr
-    proc = _mpirun(ranks, EXAMPLE, "-dim", "3", "-n", "24", *HTPPC_FLAGS)
+    proc = _mpirun(ranks, EXAMPLE, "-dim", "3", "-n", "24", "-frames", "1", *HTPPC_FLAGS)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
     assert relres <= 1.01e-8 and "graph: 3-D" in proc.stdout and f"{ranks} MPI process" in proc.stdout
+    later = proc.stdout.split("frame 1: ")[1].splitlines()[0]           # new values, the same Mat and KSP
+    assert "converged reason 2" in later and float(later.split("true relative residual ")[1]) <= 1e-7, later
 
 
 def test_amg_coarse_solve_of_3d_aggregation_leaves_is_two_v_cycles_deflated_or_one_balanced():
