@@ -67,7 +67,7 @@ def test_the_hierarchy_ends_at_the_coarse_size_and_its_options_are_checked():
     h.destroy()
     with pytest.raises(PETSc.Error) as err:
         solve(A, np.ones(A.shape[0]), htp_variant="multilevel", htp_ml_damping=2.5)
-    assert re.search(r"-fo\d+_htp_ml_damping in \(0, 2\) and -fo\d+_htp_ml_jacobi positive; got 1000, 12, 2.5, 1.4",
+    assert re.search(r"-fo\d+_htp_ml_damping in \(0, 2\) and -fo\d+_htp_ml_jacobi positive; got 5000, 12, 2.5, 1.4",
                      str(err.value.__cause__))
 
 
@@ -75,10 +75,11 @@ def test_the_hierarchy_ends_at_the_coarse_size_and_its_options_are_checked():
                                         ("neumann", 20), ("dmda3d", 18), ("fem_tet", 34)])
 def test_the_v_cycle_converges_on_foreign_matrices(case, most):
     """CG with the V-cycle reaches 1e-8 on the true residual at about 16 000 rows in at most ``most`` iterations
-    (the Neumann case singular, its null space attached; no factor of the whole matrix: ``-htp_direct_max 0``), and
-    the view shows the levels and PCMG."""
+    (the Neumann case singular, its null space attached; no factor of the whole matrix: ``-htp_direct_max 0``; a
+    coarsest operator of at most 1 000 rows, the 3-D default, so that 2-D takes three levels too), and the view shows
+    the levels and PCMG."""
     A, b = CASES[case](16384, 0)
-    reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
+    reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000)
     assert reason > 0 and its <= most and relres <= 1e-8, (reason, its, relres)
     text = lines(ksp)
     assert re.search(r"levels: [3-9], rows \d+ -> \d+", text) and "smoother: one Richardson step" in text
@@ -191,8 +192,8 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     from petsc_htp.multilevel import setup
     from petsc_htp.scenes import foreign
 
-    A, b = foreign.dmda(2, 128, 1e3, 0)
-    reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
+    A, b = foreign.dmda(2, 128, 1e3, 0)                 # three levels: the coarsest at most 1 000 rows
+    reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000)
     ctx = ksp.getPC().getPythonContext()
     assert reason > 0 and ctx.analysis_count == 1
     rng = np.random.default_rng(1)
@@ -232,9 +233,10 @@ def test_help_lists_the_multilevel_options_with_their_defaults():
     from petsc_htp.pcoptions import MULTILEVEL_HELP, HTPOptions
 
     defaults = {name: default for name, _, default, _ in MULTILEVEL_HELP}
-    assert defaults == {"coarse_max": hierarchy.COARSE_MAX, "max_levels": hierarchy.MAX_LEVELS,
+    assert defaults == {"coarse_max": hierarchy.COARSE_MAX[2], "max_levels": hierarchy.MAX_LEVELS,
                         "jacobi": level.JACOBI, "damping": cycle.DAMPING, "smoother": "auto", "reorder": "auto"}
     assert "-htp_ml_damping <real> <default 1.5>" in HTPOptions().help_text("-htp_")
+    assert hierarchy.coarse_max(2) == 5000 and hierarchy.coarse_max(3) == hierarchy.COARSE_MAX[3] == 1000
 
 
 def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
@@ -258,13 +260,13 @@ def test_new_values_of_a_singular_matrix_keep_the_smoothers_scale():
     unsets its symmetric flag, so KSPSolve no longer projects the Lanczos estimate's random b onto A's range; the
     estimate projects it itself, so the new frame's scales and iterations are a fresh solve's (the finest scale had
     been 0.16 against 0.71: 32 against 16 iterations)."""
-    A, b = CASES["neumann"](16384, 0)
-    reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel")
+    A, b = CASES["neumann"](16384, 0)                   # three levels: the coarsest at most 1 000 rows
+    reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel", htp_ml_coarse_max=1000)
     A1, b1 = CASES["neumann"](16384, 1)
     mat.setValuesCSR(A1.indptr, A1.indices, A1.data)
     mat.assemble()
     assert not mat.isSymmetricKnown()[0]
     reason, its1, relres, ksp, _ = solve(A1, b1, mat=mat, ksp=ksp)
-    fresh = solve(A1, b1, htp_variant="multilevel")
+    fresh = solve(A1, b1, htp_variant="multilevel", htp_ml_coarse_max=1000)
     scale = [float(re.search(r"scaled (\S+),", lines(k)).group(1)) for k in (ksp, fresh[3])]
     assert reason > 0 and relres <= 1e-8 and its1 <= fresh[1] + 1 and abs(scale[0] - scale[1]) < 0.05, (its1, scale)

@@ -5,9 +5,17 @@ from petsc4py import PETSc
 
 from .level import JACOBI, Level
 
-COARSE_MAX = 1000       # rows of the coarsest operator, solved by one LU
+COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, solved by one LU, by the graph's dimension (2-D,
+# one rank, CG to 1e-8, single solves, 5 000 against 1 000, 2026-11-28: 1M rows dmda2d 1 945 / 1 966 ms, lognormal
+# 1 531 / 1 779 (18 / 25 iterations), neumann 2 037 / 2 167, free surface 1 419 / 1 449; 65 536 rows level but
+# lognormal 81 / 99 (15 / 22); 20 000 slower at 65 536 rows; 3-D: the 64^3 DMDA's setup 2 130 against 1 057 ms)
 MAX_LEVELS = 12         # levels at most, the coarsest included
 STALL = 0.8             # a level that keeps more than this share of its rows as coarse vectors ends the hierarchy
+
+
+def coarse_max(dim) -> int:
+    """:data:`COARSE_MAX` for a graph of dimension ``dim`` (3-D beyond)."""
+    return COARSE_MAX[2] if dim <= 2 else COARSE_MAX[3]
 
 
 class Hierarchy:
@@ -15,7 +23,7 @@ class Hierarchy:
     ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`); ``blocks``: each level's
     leaf-block matrix made (the leaf solves' smoother)."""
 
-    def __init__(self, A, coarse_max=COARSE_MAX, max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True):
+    def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True):
         self.levels, self.coarsest = [], A
         self.sizes, self.jacobi, self.blocks = (coarse_max, max_levels), jacobi, blocks
         self._grow(leaf)
