@@ -51,11 +51,12 @@ def solve(n, contrast, seed, dim=2, scale=0.0, frames=0):
         if d is not None:
             A.diagonalScale(d, d)
 
-    out = solve_frames(A, b, frames, refill)
-    for obj in (A, b, da, d):
-        if obj is not None:
-            obj.destroy()
-    return out
+    try:
+        return solve_frames(A, b, frames, refill)
+    finally:
+        for obj in (A, b, da, d):
+            if obj is not None:
+                obj.destroy()
 
 
 def main():

@@ -236,7 +236,16 @@ def test_help_lists_the_multilevel_options_with_their_defaults():
     assert defaults == {"coarse_max": hierarchy.COARSE_MAX[2], "max_levels": hierarchy.MAX_LEVELS,
                         "jacobi": level.JACOBI, "damping": cycle.DAMPING, "smoother": "auto", "reorder": "auto"}
     assert "-htp_ml_damping <real> <default 1.5>" in HTPOptions().help_text("-htp_")
-    assert hierarchy.coarse_max(2) == 5000 and hierarchy.coarse_max(3) == hierarchy.COARSE_MAX[3] == 1000
+
+
+def test_the_coarsest_size_follows_the_graph_dimension():
+    """-htp_ml_coarse_max's default: 5 000 rows on a 2-D graph, 1 000 on a 3-D one (whose coarse LU costs more), as
+    the view says."""
+    for case, most in (("dmda2d", 5000), ("dmda3d", 1000)):
+        A, b = CASES[case](16384, 0)
+        reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
+        text = lines(ksp)
+        assert reason > 0 and relres <= 1e-8 and f"at most {most} rows" in text, text
 
 
 def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():

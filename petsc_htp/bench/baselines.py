@@ -45,7 +45,7 @@ def best_table(rows, methods, keys=("case", "n")) -> str:
             done = [(c["total_ms"]["median"], m) for m in members
                     if (c := by.get((*key, m))) and c["total_ms"]["count"] and not c["failed"]]
             best = min(done, default=(math.nan, None))
-            line += [_entry(by.get((*key, default))) if default in members else "not run",
+            line += [_entry(by.get((*key, default))) if (*key, default) in by else "not run",
                      f"{_entry(by[(*key, best[1])])} {best[1]}" if best[1] else
                      "✗ all failed" if any((*key, m) in by for m in members) else "not run",
                      f"{htp['total_ms']['median'] / best[0]:.2f}" if best[1] and htp and htp["total_ms"]["count"]

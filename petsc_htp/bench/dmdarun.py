@@ -1,13 +1,17 @@
 """One method on the DMDA problem of :mod:`petsc_htp.scenes.dmda` under mpiexec, for the ``scale`` study:
-``mpiexec -n R python -m petsc_htp.bench.dmdarun --side S --dim D --frames F --method M [--threads T]``.
+``mpiexec -n R python -m petsc_htp.bench.dmdarun --side S --dim D --frames F --method M [--threads T]
+[--checkpoint C] [--device D]`` (``M`` a method's name, or an options file's path: :attr:`.methods.Method.spec`).
 
-After a warm-up solve of a small grid (one-time costs out of the timing), frame 0 is a single solve (a fresh KSP,
-the whole setup in its time) and frames 1 .. F put the discs (balls) of the next seeds into the same Mat and solve
-them with the same KSP (sequence mode). A PETSc method (an options file, :mod:`petsc_htp.bench.methods`) runs on
-every rank; pyamg and AMGCL (serial) on one rank only, rebuilding every frame. Rank 0 prints one JSON row per frame
-(setup and solve ms, iterations, reason, true relative residual) with the peak resident memory: the largest and the
-sum over the ranks, from after the warm-up (``peak_rss_mb``), and above each rank's resident memory then
-(``solve_rss_mb``, summed), in MiB.
+After a warm-up solve of a smaller grid that takes the same paths (one-time costs out of the timing), frame 0 is a
+single solve (a fresh KSP, the whole setup in its time) and frames 1 .. F put the discs (balls) of the next seeds
+into the same Mat and solve them with the same KSP (sequence mode). A PETSc method (an options file,
+:mod:`petsc_htp.bench.methods`) runs on every rank; pyamg and AMGCL (serial) on one rank only, rebuilding every
+frame. Rank 0 prints one JSON row per frame as it ends (setup and solve ms between barriers, iterations, reason, true
+relative residual, the verdict of :func:`.runner.failure_of`; a frame that raised ends the run with a failure row).
+Frame 0's row carries the peak resident memory of its setup and solve, from after the operator and right-hand side
+were made (the problem generator's arrays out): the sum over the ranks (``peak_rss_mb``, each process's whole
+resident set: imports and the matrix in), the largest rank's (``peak_rank_mb``) and the sum of what each rank's grew
+above its resident set before the solve (``solve_rss_mb``), in MiB.
 """
 from __future__ import annotations
 
@@ -18,64 +22,91 @@ import sys
 import numpy as np
 
 CONTRAST = 1000.0
-WARMUP_SIDE = {2: 32, 3: 12}
+WARMUP_SIDE = {2: 192, 3: 24}   # past the sizes HTPPC factors whole: the measured grids' paths (2-D: the V-cycles)
 
 
-def _petsc(method, da, frames) -> list:
-    """The frames' (iterations, reason code, setup ms, solve ms, true relres) on ``da``'s grid with PETSc's KSP under
-    the method's options (loaded by the caller): one KSP, new values into its Mat."""
+class _Meter:
+    """Each rank's peak resident memory from :meth:`start` (collective :meth:`read`)."""
+
+    def __init__(self, comm):
+        self.comm, self.base = comm, 0.0
+
+    def start(self):
+        from .fresh import reset_peak, status_mb
+
+        reset_peak()
+        self.base = status_mb("VmRSS")
+
+    def read(self) -> dict:
+        from .fresh import status_mb
+
+        peak = self.comm.allgather(status_mb("VmHWM"))
+        above = self.comm.allgather(status_mb("VmHWM") - self.base)
+        return {"peak_rss_mb": sum(peak), "peak_rank_mb": max(peak), "solve_rss_mb": sum(above)}
+
+
+def _petsc(method, da, frames, meter, emit):
+    """The frames with PETSc's KSP under the method's options (loaded by the caller): one KSP, new values into its
+    Mat; ``emit(k, fields)`` after each."""
     from ..onesolve import solve_frames
     from ..scenes import dmda
+    from .harness import bjacobi_blocks, reason_name
 
     A = dmda.operator(da, CONTRAST, 0)
     b = dmda.source(A, A.getSize()[0])
+
+    def each(k, result):
+        its, code, setup, solve, relres = result
+        emit(k, {"iterations": its, "reason": reason_name(code), "setup_ms": setup, "solve_ms": solve,
+                 "relres": relres, **(meter.read() if k == 0 else {})})
+
     try:
-        return solve_frames(A, b, frames, lambda k: dmda.operator(da, CONTRAST, k, mat=A), method.prefix)
+        meter.start()
+        with bjacobi_blocks(method.prefix, A.getSize()[0], A.getComm().getSize()):
+            solve_frames(A, b, frames, lambda k: dmda.operator(da, CONTRAST, k, mat=A), method.prefix, each)
     finally:
         A.destroy()
         b.destroy()
 
 
-def _external(method, da, frames) -> list:
-    """The same with a serial solver on one rank, from scratch every frame (its stopping rule that of the options
-    files: :func:`.runner.solve_external`)."""
+def _external(method, da, frames, meter, emit):
+    """The same with a serial solver on one rank, from scratch every frame, as the benchmark runs it
+    (:func:`.runner.solve_method`)."""
     from ..petscmat import read_csr
     from ..scenes import dmda
-    from . import external
-    from .harness import common_setting, reason_name
+    from .cases import Problem
+    from .runner import solve_method
+    from .studies.foreign import bare_frame
 
-    rtol, maxit = common_setting("ksp_rtol", 1e-8), int(common_setting("ksp_max_it", 10000))
-    codes = {reason_name(c): c for c in (2, -3)}
-    out = []
     for k in range(frames + 1):
         A = dmda.operator(da, CONTRAST, k)
         rows = read_csr(A)
         A.destroy()
         b = np.full(rows.shape[0], 1.0 / rows.shape[0])
-        res = external.solve(method.name, rows, b, rtol, maxit)
-        relres = float(np.linalg.norm(b - rows @ res["x"]) / np.linalg.norm(b))
-        out.append((res["iterations"], codes.get(res["reason"], -3), res["setup_ms"], res["solve_ms"], relres))
-    return out
+        if k == 0:
+            meter.start()
+        row = solve_method(method, method.prefix, Problem(bare_frame(rows, b, ""), attach=False), False)
+        emit(k, {key: row.get(key) for key in ("iterations", "reason", "setup_ms", "solve_ms", "relres", "error")}
+             | (meter.read() if k == 0 else {}))
 
 
-def measure(method, side, dim, frames, extra) -> tuple:
-    """(the frames of :func:`_petsc` or :func:`_external` on a ``side``^``dim`` grid after a warm-up grid, this
-    rank's resident MiB before the grid)."""
+def measure(method, side, dim, frames, extra, emit):
+    """:func:`_petsc` or :func:`_external` on a ``side``^``dim`` grid after the warm-up grid's frame 0, whose rows
+    go nowhere."""
+    from mpi4py import MPI
+
     from ..scenes import dmda
-    from .fresh import reset_peak, status_mb
     from .runner import load
 
-    loaded = load(method, extra) if method.is_petsc else None
     run = _petsc if method.is_petsc else _external
+    loaded = load(method, extra) if method.is_petsc else None
     try:
-        for n, count in ((WARMUP_SIDE[dim], 0), (side, frames)):
-            if n == side:
-                reset_peak()
-                base = status_mb("VmRSS")
+        for n, count, out in ((min(WARMUP_SIDE[dim], side), 0, lambda k, fields: None), (side, frames, emit)):
             da = dmda.grid(n, dim)
-            out = run(method, da, count)
-            da.destroy()
-        return out, base
+            try:
+                run(method, da, count, _Meter(MPI.COMM_WORLD), out)
+            finally:
+                da.destroy()
     finally:
         if loaded is not None:
             loaded.__exit__(None, None, None)
@@ -88,34 +119,42 @@ def main(argv=None) -> int:
     p.add_argument("--frames", type=int, default=0)
     p.add_argument("--method", required=True)
     p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--checkpoint")
+    p.add_argument("--device")
     args = p.parse_args(argv)
     import petsc4py
 
     petsc4py.init([])
-    from petsc4py import PETSc
+    from mpi4py import MPI
 
-    from .fresh import status_mb
-    from .harness import common_setting, reason_name
+    from .harness import common_setting
     from .methods import resolve_method
-    from .runner import RESIDUAL_SLACK, htp_options
+    from .runner import describe, failure_of, htp_options
 
-    comm = PETSc.COMM_WORLD.tompi4py()
+    comm = MPI.COMM_WORLD
     method = resolve_method(args.method)
     if not method.is_petsc and comm.size > 1:
         raise SystemExit(f"{method.name} is a serial solver: run it on one rank")
-    frames, base = measure(method, args.side, args.dim, args.frames, htp_options(threads=args.threads))
-    peak = comm.gather(status_mb("VmHWM"), root=0)
-    above = comm.gather(status_mb("VmHWM") - base, root=0)
-    if comm.rank:
-        return 0
-    slack = RESIDUAL_SLACK * common_setting("ksp_rtol", 1e-8)
-    for k, (its, code, setup, solve, relres) in enumerate(frames):
-        print(json.dumps({"method": method.name, "dim": args.dim, "side": args.side, "n": args.side ** args.dim,
-                          "ranks": comm.size, "frame": k, "mode": "sequence" if k else "single",
-                          "setup_ms": setup, "solve_ms": solve, "total_ms": setup + solve, "iterations": its,
-                          "reason": reason_name(code), "relres": relres, "ok": code > 0 and relres <= slack,
-                          "peak_rss_mb": sum(peak), "peak_rank_mb": max(peak), "solve_rss_mb": sum(above)}),
-              flush=True)
+    rtol, done = common_setting("ksp_rtol", 1e-8), []
+    base = {"method": method.name, "dim": args.dim, "side": args.side, "n": args.side ** args.dim, "ranks": comm.size}
+
+    def emit(k, fields):
+        failure = failure_of(fields["reason"], fields["relres"], fields["relres"], rtol)
+        timed = fields["setup_ms"] is not None and fields["solve_ms"] is not None
+        row = {**base, "frame": k, "mode": "sequence" if k else "single", **fields, "ok": failure is None,
+               "failure": failure, "total_ms": fields["setup_ms"] + fields["solve_ms"] if timed else None}
+        done.append(k)
+        if comm.rank == 0:
+            print(json.dumps(row), flush=True)
+
+    try:
+        measure(method, args.side, args.dim, args.frames, htp_options(args.checkpoint, args.device, args.threads),
+                emit)
+    except Exception as exc:  # a failing frame is a result: its row, then the end of the run
+        if comm.rank == 0:
+            print(json.dumps({**base, "frame": len(done), "mode": "sequence" if done else "single", "ok": False,
+                              "failure": "EXCEPTION", "reason": "EXCEPTION", "error": describe(exc)}), flush=True)
+        return 1
     return 0
 
 

@@ -31,6 +31,12 @@ class Method:
         return self.path is not None
 
     @property
+    def spec(self) -> str:
+        """What names the method to another process (:func:`resolve_method`): an options file by its path (one
+        outside ``options/`` has no name there), a sweep point or an external solver by its name."""
+        return str(self.path) if self.is_petsc and not self.extra else self.name
+
+    @property
     def prefix(self) -> str:
         """Options prefix the method's file is loaded under (the name with every character but letters, digits
         and underscores made an underscore)."""

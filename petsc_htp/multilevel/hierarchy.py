@@ -13,7 +13,7 @@ MAX_LEVELS = 12         # levels at most, the coarsest included
 STALL = 0.8             # a level that keeps more than this share of its rows as coarse vectors ends the hierarchy
 
 
-def coarse_max(dim) -> int:
+def default_coarse_max(dim) -> int:
     """:data:`COARSE_MAX` for a graph of dimension ``dim`` (3-D beyond)."""
     return COARSE_MAX[2] if dim <= 2 else COARSE_MAX[3]
 

@@ -13,7 +13,7 @@ from ..twolevel.inner import held
 from ..twolevel.spacereuse import stale_cost
 from . import cycle
 from .choice import local_order
-from .hierarchy import MAX_LEVELS, Hierarchy, coarse_max
+from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, leaves
 from .moved import WeakInside
 from .ranges import range_check
@@ -35,7 +35,7 @@ class MultilevelPC:
         t0 = time.perf_counter()
         self.mat, self.prefix = mat, prefix + "ml_"
         db = PETSc.Options(self.prefix)
-        self.coarse_max = db.getInt("coarse_max", coarse_max(dim))
+        self.coarse_max = db.getInt("coarse_max", default_coarse_max(dim))
         self.max_levels = db.getInt("max_levels", MAX_LEVELS)
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)

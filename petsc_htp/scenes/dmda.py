@@ -30,8 +30,9 @@ def conductivity(shape, contrast, seed) -> np.ndarray:
 
 
 def stencil(da, contrast, seed) -> tuple:
-    """This rank's rows of the operator as (global row of each cell, columns, values), the columns and values one
-    row per cell and one column per stencil point (-1 where it falls outside the grid), in the DMDA's numbering."""
+    """This rank's rows of the operator as (the natural index of each of its cells, in the order of its rows;
+    columns; values): the columns in the DMDA's (PETSc's) numbering and values one row per cell and one column per
+    stencil point (-1 where it falls outside the grid)."""
     shape = tuple(da.getSizes())[::-1]                                   # (nz,) ny, nx
     *weights, edge = face_weights(conductivity(shape, contrast, seed))
     cell = [c.ravel() for c in np.meshgrid(*[np.arange(lo, hi) for lo, hi in da.getRanges()[::-1]], indexing="ij")]

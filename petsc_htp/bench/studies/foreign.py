@@ -179,9 +179,8 @@ def fresh(methods, names, scales, threads, tick) -> list:
             for case in names:
                 path = Path(tmp) / "frame.npz"
                 save(path, *CASES[case](n, 0))
-                for m in methods:           # an options file by its path (a sweep point by its name, its extras)
-                    spec = str(m.path) if m.is_petsc and not m.extra else m.name
-                    rows.append(tag(run(path, spec, case, threads or 1), study="foreign", mode="fresh", scale=n,
+                for m in methods:
+                    rows.append(tag(run(path, m.spec, case, threads or 1), study="foreign", mode="fresh", scale=n,
                                     method=m.name))
                     tick()
     return rows

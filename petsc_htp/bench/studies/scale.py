@@ -27,22 +27,34 @@ def grids(s) -> list:
     return [(2, n) for n in s["scale_sides_2d"]] + [(3, n) for n in s["scale_sides_3d"]]
 
 
-def run(method, dim, side, ranks, frames, threads) -> list:
-    """:mod:`..dmdarun` under ``mpiexec -n ranks``: its rows, or one failure row naming the process's last error."""
-    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin:/usr/local/bin")
+TIMEOUT_S = 3600         # a worker that takes longer (a rank stuck in a collective) ends in a failure row
+
+
+def run(method, dim, side, ranks, frames, threads=1, checkpoint=None, device=None) -> list:
+    """:mod:`..dmdarun` under ``mpiexec -n ranks`` (the benchmark's threads, checkpoint and device): its rows; where
+    it failed, its rows so far and a failure row naming its last error (also where it ran on other than ``ranks``
+    ranks: an mpiexec of another MPI)."""
+    mpiexec = shutil.which("mpiexec") or shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     cmd = [mpiexec or "mpiexec", "-n", str(ranks), sys.executable, "-m", "petsc_htp.bench.dmdarun", "--side", str(side),
-           "--dim", str(dim), "--frames", str(frames), "--method", method.name, "--threads", str(threads or 1)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    rows = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
-    if proc.returncode or not rows:
-        rows = [{"method": method.name, "dim": dim, "side": side, "n": side ** dim, "ranks": ranks, "frame": 0,
-                 "mode": "single", "ok": False, "failure": "EXCEPTION", "reason": "EXCEPTION",
-                 "error": ((proc.stderr or proc.stdout).strip().splitlines() or ["no output"])[-1][:300]}]
+           "--dim", str(dim), "--frames", str(frames), "--method", method.spec, "--threads", str(threads or 1)]
+    cmd += [arg for flag, value in (("--checkpoint", checkpoint), ("--device", device)) if value
+            for arg in (flag, str(value))]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
+        rows, error = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")], ""
+        if proc.returncode and not any(not r["ok"] for r in rows):
+            error = ((proc.stderr or proc.stdout).strip().splitlines() or ["no output"])[-1][:300]
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        rows, error = [], f"{type(exc).__name__}: {exc}"[:300]
+    if any(r["ranks"] != ranks for r in rows):
+        rows, error = [], f"ran on {rows[0]['ranks']} rank(s), not {ranks}: mpiexec {mpiexec} is of another MPI"
+    if error:
+        rows.append({"method": method.name, "dim": dim, "side": side, "n": side ** dim, "ranks": ranks,
+                     "frame": len(rows), "mode": "sequence" if rows else "single", "ok": False,
+                     "failure": "EXCEPTION", "reason": "EXCEPTION", "error": error})
     for row in rows:
-        row.update(case=f"{row['dim']}-D, {row['ranks']} rank{'s' if row['ranks'] > 1 else ''}", study="scale",
+        row.update(method=method.name, case=f"{dim}-D, {ranks} rank{'s' if ranks > 1 else ''}", study="scale",
                    relres_proj=row.get("relres"))
-        row.setdefault("failure", None if row["ok"] else row["reason"] if row["reason"] != "CONVERGED_RTOL"
-                       else "RESIDUAL")
     return rows
 
 
@@ -59,7 +71,8 @@ def times(rows, methods) -> str:
         for m in methods:
             c = by.get((dim, n, ranks, m))
             line.append("—" if not c else f"✗ {c['failure']}" if not c["total_ms"]["count"] else
-                        f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})")
+                        f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})"
+                        + (f" ✗{c['failed']}" if c["failed"] else ""))
         body.append(line)
     return md_table(["grid", "N", "ranks"] + methods, body, left=3)
 
@@ -84,6 +97,8 @@ def strong(rows, methods) -> str:
     """Setup + solve ms on the most ranks over that on one, per grid and method."""
     by = cells(rows, "dim", "n", "ranks", "method")
     most = max(r["ranks"] for r in rows)
+    if most == 1:
+        return "(one rank only in this run)"
     body = []
     for dim, n in dict.fromkeys((r["dim"], r["n"]) for r in rows):
         line = [f"{dim}-D", n_label(n)]
@@ -151,7 +166,8 @@ class Scale(Study):
             for ranks in s["scale_ranks"]:
                 for m in ctx.methods:
                     if m.is_petsc or ranks == 1:
-                        rows += run(m, dim, side, ranks, s["scale_frames"], ctx.threads)
+                        rows += run(m, dim, side, ranks, s["scale_frames"], ctx.threads, ctx.checkpoint,
+                                    ctx.device)
                         tick()
         return rows
 
