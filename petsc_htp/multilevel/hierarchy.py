@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from ..petscmat import product_clear
 from .level import JACOBI, Level
 
 COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, solved by one LU, by the graph's dimension (2-D,
@@ -39,6 +40,9 @@ class Hierarchy:
                 break
             self.levels.append(level)
             self.coarsest = level.coarse()
+            if len(self.levels) > 1:            # made anew, never refreshed: the products' reuse data go
+                product_clear(level.W)
+                product_clear(self.coarsest)
 
     def refresh(self):
         """New values of the finest operator (same pattern): the finest level's leaf blocks (where made), smoothed

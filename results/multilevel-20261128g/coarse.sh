@@ -12,3 +12,10 @@ $P -m petsc_htp.bench --studies foreign --methods $D/htp_cm1000.opts $D/htp_cm20
 $P -m petsc_htp.bench --studies foreign --methods $D/htp_cm1000.opts $D/htp_cm5000.opts $D/htp_cm10000.opts \
     $D/htp_cm20000.opts --foreign-scales 65536 1048576 --foreign-cases dmda2d free_surface lognormal neumann \
     --foreign-frames 1 --threads 1 --out $D/b --no-progress
+# 3-D (-htp_variant multilevel, the 64^3 DMDA program, one solve after a warm-up), 1 000 against 5 000 rows (3d.txt
+# after commit 5e648f3):
+for cm in 1000 5000; do
+  echo "coarse_max $cm"
+  $P examples/dmda_poisson.py -dim 3 -n 64 -warmup -ksp_type cg -ksp_rtol 1e-8 -ksp_norm_type unpreconditioned \
+      -pc_type python -pc_python_type petsc_htp.HTPPC -htp_variant multilevel -htp_ml_coarse_max $cm
+done > $D/3d.txt
