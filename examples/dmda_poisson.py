@@ -13,9 +13,9 @@ instead, D a random diagonal scaling in 10^-S .. 10^S (unknowns in mixed units; 
 ``-frames K`` solves K more frames after the first, each with the discs of the next seed put into the same Mat and
 solved by the same KSP (a simulation's loop: the preconditioner set up again for new values of the pattern).
 ``-warmup`` solves a smaller problem first, so that one-time costs (Python imports, first calls) are not in the timed
-solve. Prints the iterations, PETSc's reason, the setup (KSPSetUp: the preconditioner's analysis and factorisation)
-and solve milliseconds, and the true relative residual (one line per later frame); exits non-zero when a solve did
-not converge.
+solve. Prints the iterations, PETSc's reason, the setup (KSPSetUp and PCSetUpOnBlocks: the preconditioner's analysis
+and factorisation) and solve milliseconds, and the true relative residual (one line per later frame); exits non-zero
+when a solve did not converge.
 """
 import sys
 from pathlib import Path

@@ -141,7 +141,7 @@ def post_solve(pc, ksp) -> None:
 
 def product_clear(mat) -> None:
     """Free what PETSc keeps on ``mat``, the result of a MatMatMult or MatPtAP, to redo the product's numeric part
-    with new values (MatProductClear: the product stays a plain Mat)."""
+    with new values (MatProductClear: the product stays a plain Mat; collective)."""
     if _c_api()[0].MatProductClear(ctypes.c_void_p(mat.handle)):
         raise RuntimeError("PETSc's MatProductClear failed")
 

@@ -604,3 +604,8 @@ def test_scale_study_runs_the_dmda_program_on_one_and_two_ranks(env, tmp_path):
     assert "| 2-D, 2 ranks | 2 304 |" in report and "not run" in report and (out / "scale.png").stat().st_size
     failed, = run(resolve_method("amgcl"), 2, 48, 2, 0)
     assert not failed["ok"] and "amgcl is a serial solver: run it on one rank" in failed["error"], failed
+    bad = tmp_path / "bad.opts"                      # raises on both ranks: one failure row, the cause named
+    bad.write_text(f"-options_file {mine}\n-pc_type python\n-pc_python_type petsc_htp.HTPPC\n-htp_direct_max 0\n"
+                   "-htp_variant multilevel\n-htp_ml_damping 2.5\n")
+    failed, = run(resolve_method(str(bad)), 2, 48, 2, 1)
+    assert failed["failure"] == "EXCEPTION" and "htp_ml_damping in (0, 2)" in failed["error"], failed

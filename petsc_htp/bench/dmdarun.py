@@ -2,7 +2,8 @@
 ``mpiexec -n R python -m petsc_htp.bench.dmdarun --side S --dim D --frames F --method M [--threads T]
 [--checkpoint C] [--device D]`` (``M`` a method's name, or an options file's path: :attr:`.methods.Method.spec`).
 
-After a warm-up solve of a smaller grid that takes the same paths (one-time costs out of the timing), frame 0 is a
+After a warm-up solve of a grid no larger (one-time costs out of the timing: 192^2 or 24^3, past the sizes HTPPC
+factors whole, so that 2-D takes the V-cycles and 3-D the two-level method as the measured grids do), frame 0 is a
 single solve (a fresh KSP, the whole setup in its time) and frames 1 .. F put the discs (balls) of the next seeds
 into the same Mat and solve them with the same KSP (sequence mode). A PETSc method (an options file,
 :mod:`petsc_htp.bench.methods`) runs on every rank; pyamg and AMGCL (serial) on one rank only, rebuilding every
@@ -22,7 +23,7 @@ import sys
 import numpy as np
 
 CONTRAST = 1000.0
-WARMUP_SIDE = {2: 192, 3: 24}   # past the sizes HTPPC factors whole: the measured grids' paths (2-D: the V-cycles)
+WARMUP_SIDE = {2: 192, 3: 24}   # warm-up grids (or the measured one, where smaller)
 
 
 class _Meter:
@@ -83,9 +84,10 @@ def _external(method, da, frames, meter, emit):
         rows = read_csr(A)
         A.destroy()
         b = np.full(rows.shape[0], 1.0 / rows.shape[0])
+        problem = Problem(bare_frame(rows, b, ""), attach=False)
         if k == 0:
             meter.start()
-        row = solve_method(method, method.prefix, Problem(bare_frame(rows, b, ""), attach=False), False)
+        row = solve_method(method, method.prefix, problem, False)
         emit(k, {key: row.get(key) for key in ("iterations", "reason", "setup_ms", "solve_ms", "relres", "error")}
              | (meter.read() if k == 0 else {}))
 
@@ -150,10 +152,11 @@ def main(argv=None) -> int:
     try:
         measure(method, args.side, args.dim, args.frames, htp_options(args.checkpoint, args.device, args.threads),
                 emit)
-    except Exception as exc:  # a failing frame is a result: its row, then the end of the run
-        if comm.rank == 0:
-            print(json.dumps({**base, "frame": len(done), "mode": "sequence" if done else "single", "ok": False,
-                              "failure": "EXCEPTION", "reason": "EXCEPTION", "error": describe(exc)}), flush=True)
+    except Exception as exc:  # a failing frame is a result: its row (from the rank that raised), then the end
+        print(json.dumps({**base, "frame": len(done), "mode": "sequence" if done else "single", "ok": False,
+                          "failure": "EXCEPTION", "reason": "EXCEPTION", "error": describe(exc)}), flush=True)
+        if comm.size > 1:                   # the others may wait in a collective
+            comm.Abort(1)
         return 1
     return 0
 

@@ -9,7 +9,7 @@ from .level import JACOBI, Level
 COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, solved by one LU, by the graph's dimension (2-D,
 # one rank, CG to 1e-8, single solves, 5 000 against 1 000, 2026-11-28: 1M rows dmda2d 1 945 / 1 966 ms, lognormal
 # 1 531 / 1 779 (18 / 25 iterations), neumann 2 037 / 2 167, free surface 1 419 / 1 449; 65 536 rows level but
-# lognormal 81 / 99 (15 / 22); 20 000 slower at 65 536 rows; 3-D: the 64^3 DMDA's setup 2 130 against 1 057 ms)
+# lognormal 81 / 99 (15 / 22); 20 000 slower at 65 536 rows; 3-D: the 64^3 DMDA's setup 1 959 against 937 ms)
 MAX_LEVELS = 12         # levels at most, the coarsest included
 STALL = 0.8             # a level that keeps more than this share of its rows as coarse vectors ends the hierarchy
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -39,13 +41,20 @@ def run(method, dim, side, ranks, frames, threads=1, checkpoint=None, device=Non
            "--dim", str(dim), "--frames", str(frames), "--method", method.spec, "--threads", str(threads or 1)]
     cmd += [arg for flag, value in (("--checkpoint", checkpoint), ("--device", device)) if value
             for arg in (flag, str(value))]
+    out, error = "", ""
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
-        rows, error = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")], ""
-        if proc.returncode and not any(not r["ok"] for r in rows):
-            error = ((proc.stderr or proc.stdout).strip().splitlines() or ["no output"])[-1][:300]
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        rows, error = [], f"{type(exc).__name__}: {exc}"[:300]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        try:
+            out, err = proc.communicate(timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)        # mpiexec and its ranks
+            out, err = proc.communicate()
+            error = f"timed out after {TIMEOUT_S} s"
+    except OSError as exc:
+        error = f"{type(exc).__name__}: {exc}"[:300]
+    rows = _rows(out)
+    if not error and proc.returncode and not (rows and rows[-1].get("failure") == "EXCEPTION"):
+        error = ((err or out).strip().splitlines() or ["no output"])[-1][:300]
     if any(r["ranks"] != ranks for r in rows):
         rows, error = [], f"ran on {rows[0]['ranks']} rank(s), not {ranks}: mpiexec {mpiexec} is of another MPI"
     if error:
@@ -56,6 +65,17 @@ def run(method, dim, side, ranks, frames, threads=1, checkpoint=None, device=Non
         row.update(method=method.name, case=f"{dim}-D, {ranks} rank{'s' if ranks > 1 else ''}", study="scale",
                    relres_proj=row.get("relres"))
     return rows
+
+
+def _rows(out) -> list:
+    """The JSON rows in a worker's output, one per frame (ranks that each print a failure row may interleave theirs:
+    the first of a frame's is kept)."""
+    rows, decoder, at = {}, json.JSONDecoder(), out.find('{"method"')
+    while at >= 0:
+        row, end = decoder.raw_decode(out, at)
+        rows.setdefault(row["frame"], row)
+        at = out.find('{"method"', end)
+    return [rows[k] for k in sorted(rows)]
 
 
 def _mode(res, mode) -> list:
