@@ -41,9 +41,8 @@ class _Meter:
     def read(self) -> dict:
         from .fresh import status_mb
 
-        peak = self.comm.allgather(status_mb("VmHWM"))
-        above = self.comm.allgather(status_mb("VmHWM") - self.base)
-        return {"peak_rss_mb": sum(peak), "peak_rank_mb": max(peak), "solve_rss_mb": sum(above)}
+        peak, base = zip(*self.comm.allgather((status_mb("VmHWM"), self.base)))
+        return {"peak_rss_mb": sum(peak), "peak_rank_mb": max(peak), "solve_rss_mb": sum(peak) - sum(base)}
 
 
 def _petsc(method, da, frames, meter, emit):

@@ -75,3 +75,13 @@ def time_cell(c, bold=False) -> str:
     text = f"{ms(c['total_ms']['mean'])} ({its(c['iterations']['mean'])})"
     text = f"**{text}**" if bold else text
     return text + (f" ✗{c['failed']}/{c['frames']} {c['failure']}" if c["failed"] else "")
+
+
+def median_cell(c) -> str:
+    """A :func:`~petsc_htp.bench.aggregate.cell` as ``median ms (median iterations)``, its failed frames counted."""
+    if c is None:
+        return "—"
+    if not c["total_ms"]["count"]:
+        return f"✗ {c['failure']}"
+    return (f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})"
+            + (f" ✗{c['failed']}" if c["failed"] else ""))

@@ -17,7 +17,7 @@ import numpy as np
 from ..aggregate import cells
 from ..baselines import best_table
 from ..foreigncases import CASES, PATTERN_CHANGES, pyamg_cases
-from ..markdown import image, md_table, ms, n_label
+from ..markdown import image, md_table, median_cell, ms, n_label
 from .base import Size, Study, solve_all, tag
 
 CHART = "foreign.png"
@@ -154,14 +154,7 @@ def table(res, mode) -> str:
     for case, n in keys:
         line = [case, n_label(n)]
         for m in methods:
-            c = by.get((case, n, m))
-            if not c:
-                line.append("—")
-            elif not c["total_ms"]["count"]:
-                line.append(f"✗ {c['failure']}")
-            else:
-                line.append(f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})"
-                            + (f" ✗{c['failed']}" if c["failed"] else ""))
+            line.append(median_cell(by.get((case, n, m))))
         body.append(line)
     return md_table(["case", "N"] + methods, body, left=2)
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..aggregate import cells, value
 from ..baselines import best_table
-from ..markdown import image, md_table, ms, n_label
+from ..markdown import image, md_table, median_cell, n_label
 from .base import Size, Study
 
 CHART = "scale.png"
@@ -89,10 +89,7 @@ def times(rows, methods) -> str:
     for dim, n, ranks in dict.fromkeys((r["dim"], r["n"], r["ranks"]) for r in rows):
         line = [f"{dim}-D", n_label(n), ranks]
         for m in methods:
-            c = by.get((dim, n, ranks, m))
-            line.append("—" if not c else f"✗ {c['failure']}" if not c["total_ms"]["count"] else
-                        f"{ms(c['total_ms']['median'])} ({c['iterations']['median']:.0f})"
-                        + (f" ✗{c['failed']}" if c["failed"] else ""))
+            line.append(median_cell(by.get((dim, n, ranks, m))))
         body.append(line)
     return md_table(["grid", "N", "ranks"] + methods, body, left=3)
 
