@@ -139,13 +139,6 @@ def post_solve(pc, ksp) -> None:
     _c_api()[0].PCPostSolve(ctypes.c_void_p(pc.handle), ctypes.c_void_p(ksp.handle))
 
 
-def product_clear(mat) -> None:
-    """Free what PETSc keeps on ``mat``, the result of a MatMatMult or MatPtAP, to redo the product's numeric part
-    with new values (MatProductClear: the product stays a plain Mat; collective)."""
-    if _c_api()[0].MatProductClear(ctypes.c_void_p(mat.handle)):
-        raise RuntimeError("PETSc's MatProductClear failed")
-
-
 @functools.lru_cache(maxsize=1)
 def _c_api():
     """PETSc's C library (reached through petsc4py's extension module) and the ctypes type of PetscInt."""

@@ -39,7 +39,7 @@ def test_a_level_keeps_its_leaves_apart_and_its_coarse_vectors_sum_to_one():
     y = level.W.createVecLeft()
     level.W.mult(ones, y)
     assert np.allclose(y.getArray(), 1.0)
-    E = level.coarse()
+    E = level.below
     assert E.getSize()[0] == level.W.getSize()[1] < A.shape[0] / 3
     D, _ = CASES["dmda2d"](4096, 0)
     dmat = _mat(D)
@@ -50,7 +50,7 @@ def test_a_level_keeps_its_leaves_apart_and_its_coarse_vectors_sum_to_one():
     assert np.count_nonzero(held == 0) == 4 * 63    # the DMDA's boundary rows: no coarse vector
     for m in (level, dl):
         m.destroy()
-    for m in (mat, dmat, E):
+    for m in (mat, dmat, E, dl.below):
         m.destroy()
 
 
@@ -279,3 +279,19 @@ def test_new_values_of_a_singular_matrix_keep_the_smoothers_scale():
     fresh = solve(A1, b1, htp_variant="multilevel", htp_ml_coarse_max=1000)
     scale = [float(re.search(r"scaled (\S+),", lines(k)).group(1)) for k in (ksp, fresh[3])]
     assert reason > 0 and relres <= 1e-8 and its1 <= fresh[1] + 1 and abs(scale[0] - scale[1]) < 0.05, (its1, scale)
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_each_ranks_own_products_match_petscs(ranks):
+    """A level's coarse space and next operator, made from each rank's rows by scipy's products, equal PETSc's
+    MatMatMult and MatPtAP (to rounding) on 1 and 2 ranks, built and refreshed; an AIJ made on a rank's arrays equals
+    the Mat they came from (tests/galerkin_case.py)."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(ROOT / "tests" / "galerkin_case.py")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines())
+    assert sorted(lines) == ["dmda2d", "dmda3d", "neumann"], out.stdout
+    for case, text in lines.items():
+        diff, same = text.split()
+        assert float(diff) < 1e-12 and same == "equal", (case, text)

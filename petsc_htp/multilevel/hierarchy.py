@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from ..petscmat import product_clear
 from .level import JACOBI, Level
 
 COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, solved by one LU, by the graph's dimension (2-D,
@@ -24,38 +23,40 @@ class Hierarchy:
     ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`); ``blocks``: each level's
     leaf-block matrix made (the leaf solves' smoother)."""
 
-    def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True):
+    def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True,
+                 rows=None):
         self.levels, self.coarsest = [], A
         self.sizes, self.jacobi, self.blocks = (coarse_max, max_levels), jacobi, blocks
-        self._grow(leaf)
+        self._grow(leaf, rows)
 
-    def _grow(self, leaf=None):
-        """Levels under :attr:`coarsest` until it is small enough (``leaf``: its leaves where found)."""
+    def _grow(self, leaf=None, rows=None):
+        """Levels under :attr:`coarsest` until it is small enough (``leaf``, ``rows``: its leaves and this rank's
+        rows where found)."""
         coarse_max, max_levels = self.sizes
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
-            level = Level(self.coarsest, self.jacobi, None if self.levels else leaf, self.blocks)
+            first = not self.levels
+            level = Level(self.coarsest, self.jacobi, leaf if first else None, self.blocks, rows if first else None)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
+                level.below.destroy()
                 level.destroy()
                 break
             self.levels.append(level)
-            self.coarsest = level.coarse()
-            if len(self.levels) > 1:            # made anew, never refreshed: the products' reuse data go
-                product_clear(level.W)
-                product_clear(self.coarsest)
+            self.coarsest = level.below
 
-    def refresh(self):
-        """New values of the finest operator (same pattern): the finest level's leaf blocks (where made), smoothed
-        coarse vectors and Galerkin operator anew in the matrices made before, its leaves kept; the coarser levels
-        made anew from that operator (their leaves follow its new values: log-normal fields of a new seed each
-        frame, 65 536 rows, took 29, 32 and 40 CG iterations with every level's leaves kept, 25, 20 and 23 so)."""
+    def refresh(self, rows=None):
+        """New values of the finest operator (same pattern; ``rows``: this rank's rows of it, where read): the finest
+        level's leaf blocks (where made), smoothed coarse vectors and Galerkin operator anew, its leaves kept; the
+        coarser levels made anew from that operator (their leaves follow its new values: log-normal fields of a new
+        seed each frame, 65 536 rows, took 29, 32 and 40 CG iterations with every level's leaves kept, 25, 20 and 23
+        so)."""
         if not self.levels:
             return
         ops = self.operators()
         first = self.levels[0]
-        first.refresh()
-        below = first.coarse(into=ops[1])
-        for A in ops[2:]:
+        first.refresh(rows)
+        below = first.below
+        for A in ops[1:]:
             A.destroy()
         for level in self.levels[1:]:
             level.destroy()

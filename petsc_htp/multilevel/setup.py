@@ -74,7 +74,7 @@ class MultilevelPC:
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
                     self.mat.createSubMatrix(self.order, self.order, submat=self.P)
-                self.hierarchy.refresh()
+                self.hierarchy.refresh(rows if self.P is None else None)
             with phase("HTPCoarseFactor", self.times, "cycle"):
                 self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
             self.age += 1
@@ -94,7 +94,7 @@ class MultilevelPC:
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
-                                       blocks=self.smoother == "leaves")
+                                       blocks=self.smoother == "leaves", rows=rows if self.P is None else None)
         with phase("HTPCoarseFactor", self.times, "cycle"):
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
@@ -148,11 +148,11 @@ class MultilevelPC:
     @property
     def nbytes(self) -> int:
         """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, every level's leaf
-        blocks (where made), coarse spaces and coarse operator, the smoothers' factors (the leaf solves') and the
+        blocks (where made), coarse space and coarse operator, the smoothers' factors (the leaf solves') and the
         coarse LU (PCREDUNDANT's gathered one not counted)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
-            mats += [m for m in (level.B, level.W0, level.W) if m is not None]
+            mats += [m for m in (level.B, level.W) if m is not None]
         mats += self.hierarchy.operators()[1:]
         total = sum(int(m.getInfo()["nz_used"]) for m in mats)
         pcs = [self.pc.getMGSmoother(level).getPC() for level in range(1, self.pc.getMGLevels())]
