@@ -22,7 +22,8 @@ class Size:
     name : str
         Key in the settings (and the flag, underscores as dashes, unless ``flag`` is given).
     full, quick
-        Defaults of a full run and of ``--quick``; a list makes the flag take several values.
+        Defaults of a full run and of ``--quick``; a list makes the flag take several values (or none: the flag
+        alone, e.g. ``--scale-sides-3d``, leaves that part out).
     help : str
         Help of the flag; without it the setting has no flag.
     flag : str
@@ -46,7 +47,7 @@ class Size:
         kind = self.kind or type(self.full[0] if many else self.full)
         text = self.help if self.full is None else f"{self.help} ({_show(self.full)} / {_show(self.quick)})"
         parser.add_argument(self.flag or "--" + self.name.replace("_", "-"), dest=self.name, type=kind,
-                            nargs="+" if many else None, help=text)
+                            nargs="*" if many else None, help=text)
 
 
 SCALES = Size("scales", [1024, 2048, 4096, 8192, 16384], [256, 512], "N of table/curves/fastpath")
