@@ -36,29 +36,37 @@ def aij(comm, sizes, diag, off=None) -> PETSc.Mat:
     """An AIJ matrix of ``sizes`` (PETSc's ((rows, global rows), (columns, global columns))) on ``comm`` whose rows on
     this rank are the scipy CSR ``diag`` (the diagonal block: this rank's columns, numbered from its first) and
     ``off`` (global columns outside them; None where there are none). Collective."""
-    seq = _seq(diag)
     if comm.getSize() == 1:
-        return seq
+        return _seq(diag, comm)
+    seq = _seq(diag)
     (n, M), (_, N) = sizes
     other = _seq(sp.csr_matrix((n, N)) if off is None else off)
     lib, it = _c_api()
     for block in (seq, other):
         block.incRef()                  # the MPIAIJ takes both blocks without a reference of its own
     made = ctypes.c_void_p()
-    handle = comm.tompi4py().py2f()
-    if lib.MatCreateMPIAIJWithSeqAIJ(ctypes.c_int(handle), it(M), it(N), ctypes.c_void_p(seq.handle),
+    if lib.MatCreateMPIAIJWithSeqAIJ(_c_comm(comm), it(M), it(N), ctypes.c_void_p(seq.handle),
                                      ctypes.c_void_p(other.handle), None, ctypes.byref(made)):
         raise RuntimeError("PETSc's MatCreateMPIAIJWithSeqAIJ failed")
     return _wrapped(made)
 
 
-def _seq(block) -> PETSc.Mat:
-    """A SEQAIJ on the arrays of the scipy CSR ``block`` (column indices sorted in each row; PETSc's integer type)."""
+def _c_comm(comm):
+    """The C MPI_Comm of the PETSc ``comm`` as a ctypes value (an int in MPICH, a pointer in Open MPI)."""
+    from mpi4py import MPI
+
+    handle = MPI._handleof(comm.tompi4py())
+    return (ctypes.c_int if MPI._sizeof(MPI.Comm) == ctypes.sizeof(ctypes.c_int) else ctypes.c_void_p)(handle)
+
+
+def _seq(block, comm=PETSc.COMM_SELF) -> PETSc.Mat:
+    """A SEQAIJ on ``comm`` (of one rank) on the arrays of the scipy CSR ``block`` (column indices sorted in each row;
+    PETSc's integer type)."""
     if not block.has_sorted_indices:
         block.sort_indices()
     arrays = (block.indptr.astype(PETSc.IntType, copy=False), block.indices.astype(PETSc.IntType, copy=False),
               np.ascontiguousarray(block.data, dtype=PETSc.ScalarType))
-    return PETSc.Mat().createAIJWithArrays(block.shape, arrays, comm=PETSc.COMM_SELF)
+    return PETSc.Mat().createAIJWithArrays(block.shape, arrays, comm=comm)
 
 
 def _wrapped(made) -> PETSc.Mat:

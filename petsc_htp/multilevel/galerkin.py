@@ -37,7 +37,8 @@ class Halo:
 
 
 def coarse_columns(mat, halo, column):
-    """Each column of ``halo.A``: the coarse column (global) of its row, or -1 (this rank's rows by ``column``)."""
+    """Each column of :meth:`Halo.matrix`: the coarse column (global) of its row, or -1 (this rank's rows by
+    ``column``; the ghosts' from their ranks)."""
     if not halo.ghosts.size:
         return column
     theirs = ghost_values(mat, column.astype(np.float64), halo.ghosts)
