@@ -19,10 +19,11 @@ _SLOT = "petsc_htp_made"        # the name a made MPIAIJ is composed under for a
 
 def split(rows, start, stop):
     """This rank's ``rows`` (scipy CSR, global columns) as its diagonal block (columns ``start:stop``, numbered from
-    ``start``) and the rest (global columns), each scipy CSR."""
+    ``start``) and the rest (global columns; None where there is none), each scipy CSR."""
     inside = (rows.indices >= start) & (rows.indices < stop)
     if inside.all():
-        return rows, None
+        return sp.csr_matrix((rows.data, rows.indices - start if start else rows.indices, rows.indptr),
+                             shape=(rows.shape[0], stop - start)), None
     n = rows.shape[0]
     row = np.repeat(np.arange(n), np.diff(rows.indptr))
     own = np.zeros(n + 1, dtype=np.int64)
@@ -36,10 +37,13 @@ def aij(comm, sizes, diag, off=None) -> PETSc.Mat:
     """An AIJ matrix of ``sizes`` (PETSc's ((rows, global rows), (columns, global columns))) on ``comm`` whose rows on
     this rank are the scipy CSR ``diag`` (the diagonal block: this rank's columns, numbered from its first) and
     ``off`` (global columns outside them; None where there are none). Collective."""
+    (n, M), (m, N) = sizes
+    if diag.shape != (n, m) or (off is not None and off.shape != (n, N)):
+        raise ValueError(f"the blocks' shapes {diag.shape} and {None if off is None else off.shape} do not match this "
+                         f"rank's {n} rows, {m} columns of {N}")
     if comm.getSize() == 1:
-        return _seq(diag, comm)
+        return _seq(diag if off is None else diag + off, comm)
     seq = _seq(diag)
-    (n, M), (_, N) = sizes
     other = _seq(sp.csr_matrix((n, N)) if off is None else off)
     lib, it = _c_api()
     for block in (seq, other):

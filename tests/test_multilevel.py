@@ -284,14 +284,15 @@ def test_new_values_of_a_singular_matrix_keep_the_smoothers_scale():
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_each_ranks_own_products_match_petscs(ranks):
     """A level's coarse space and next operator, made from each rank's rows by scipy's products, equal PETSc's
-    MatMatMult and MatPtAP (to rounding) on 1 and 2 ranks, built and refreshed; an AIJ made on a rank's arrays equals
-    the Mat they came from (tests/galerkin_case.py)."""
+    MatMatMult and MatPtAP (to rounding) on 1 and 2 ranks, built and refreshed, a rank without rows or without
+    couplings to another's included; an AIJ made on a rank's arrays equals the Mat they came from
+    (tests/galerkin_case.py)."""
     mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     out = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(ROOT / "tests" / "galerkin_case.py")],
                          cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     lines = dict(line.split(" ", 1) for line in out.stdout.splitlines())
-    assert sorted(lines) == ["dmda2d", "dmda3d", "neumann"], out.stdout
+    assert sorted(lines) == ["decoupled_blocks", "dmda2d", "dmda3d", "neumann", "one_rank_owns_all", "uneven"], out.stdout
     for case, text in lines.items():
         diff, same = text.split()
         assert float(diff) < 1e-12 and same == "equal", (case, text)

@@ -38,8 +38,8 @@ class Halo:
 
 def coarse_columns(mat, halo, column):
     """Each column of :meth:`Halo.matrix`: the coarse column (global) of its row, or -1 (this rank's rows by
-    ``column``; the ghosts' from their ranks)."""
-    if not halo.ghosts.size:
+    ``column``; the ghosts' from their ranks: collective on more than one rank, whether this one has ghosts or not)."""
+    if mat.getComm().getSize() == 1:
         return column
     theirs = ghost_values(mat, column.astype(np.float64), halo.ghosts)
     return np.concatenate([column, np.rint(theirs).astype(column.dtype)])
@@ -54,16 +54,17 @@ def tentative(columns, n_coarse) -> sp.csr_matrix:
 
 
 def diagonal_entries(A) -> np.ndarray:
-    """Where each row's diagonal is stored in ``A`` (:meth:`Halo.matrix`), or None where a row has none."""
+    """Where each row's diagonal is stored in ``A`` (:meth:`Halo.matrix`); None where some row has none."""
     row = np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
     at = np.flatnonzero(row == A.indices)
     return at if at.size == A.shape[0] else None
 
 
 def smoothed_rows(A, W0, at, omega):
-    """This rank's rows of W = (I - omega D^-1 A) W0 (``W0``: :func:`tentative`), scipy CSR with global coarse
-    columns, sorted: one sparse product of the smoother, whose diagonal lies at A's (``at``, :func:`diagonal_entries`;
-    None: added apart), with W0 (entries that cancel are dropped). ``A``: this rank's rows, :meth:`Halo.matrix`."""
+    """This rank's rows of W = (I - omega D^-1 A) W0 (``W0``: :func:`tentative`; a row whose diagonal is zero or
+    absent is scaled by 1 in D's place), scipy CSR with global coarse columns, sorted: one sparse product of the
+    smoother, whose diagonal lies at A's (``at``, :func:`diagonal_entries`; None: added apart), with W0 (entries that
+    cancel are dropped). ``A``: this rank's rows, :meth:`Halo.matrix`."""
     n = A.shape[0]
     d = A.diagonal()
     scale = -omega / np.where(d != 0, d, 1.0)

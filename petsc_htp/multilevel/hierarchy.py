@@ -20,8 +20,8 @@ def default_coarse_max(dim) -> int:
 
 class Hierarchy:
     """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last;
-    ``leaf``: the finest level's leaves where already found (:func:`.level.leaves`); ``blocks``: each level's
-    leaf-block matrix made (the leaf solves' smoother)."""
+    ``leaf``, ``rows``: the finest level's leaves (:func:`.level.leaves`) and this rank's rows of ``A`` where already
+    found; ``blocks``: each level's leaf-block matrix made (the leaf solves' smoother)."""
 
     def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True,
                  rows=None):
@@ -52,15 +52,13 @@ class Hierarchy:
         so)."""
         if not self.levels:
             return
-        ops = self.operators()
-        first = self.levels[0]
-        first.refresh(rows)
-        below = first.below
-        for A in ops[1:]:
+        for A in self.operators()[1:]:                 # first: the old operators go before the new are made
             A.destroy()
         for level in self.levels[1:]:
             level.destroy()
-        self.levels, self.coarsest = self.levels[:1], below
+        self.levels = self.levels[:1]
+        self.levels[0].refresh(rows)
+        self.coarsest = self.levels[0].below
         self._grow()
 
     def operators(self) -> list:

@@ -40,12 +40,12 @@ class Level:
             columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))
             self.W0 = galerkin.tentative(columns, self.n_coarse)
             self.at = galerkin.diagonal_entries(self.halo.matrix(rows, start))
-            self.blocks = LeafPattern(A, rows, self.leaf, start) if blocks else None
+            self.pattern = LeafPattern(A, rows, self.leaf, start) if blocks else None
             self._numeric(rows, start)
 
     def _numeric(self, rows, start):
         """The leaf-block matrix, the smoothed coarse space and the next operator from the values ``rows``."""
-        self.B = None if self.blocks is None else self.blocks.matrix(self.A, rows)
+        self.B = None if self.pattern is None else self.pattern.matrix(self.A, rows)
         bound = gershgorin(rows, start, self.A.getComm())
         local = self.halo.matrix(rows, start)
         W_rows = galerkin.smoothed_rows(local, self.W0, self.at, self.jacobi / bound)
