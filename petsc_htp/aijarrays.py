@@ -2,19 +2,14 @@
 
 PETSc's ``MatCreateAIJ`` with a CSR (and ``MatCreateMPIAIJWithArrays``) sets the rows one by one: 90 ms for the
 1024^2 5-point matrix on one rank, 80 ms for half of it on each of two ranks; ``MatCreateSeqAIJWithArrays`` takes
-the arrays themselves (10 ms), and ``MatCreateMPIAIJWithSeqAIJ`` joins two such blocks into an MPIAIJ (3 ms).
+the arrays themselves (10 ms), ``MatCreateMPIAIJWithSplitArrays`` the diagonal block's and the rest's (13-30 ms on
+two ranks). petsc4py's ``createAIJWithArrays`` calls them and keeps the arrays with the Mat.
 """
 from __future__ import annotations
-
-import ctypes
 
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
-
-from .petscmat import _c_api
-
-_SLOT = "petsc_htp_made"        # the name a made MPIAIJ is composed under for a moment, to wrap its handle
 
 
 def split(rows, start, stop):
@@ -36,52 +31,20 @@ def split(rows, start, stop):
 def aij(comm, sizes, diag, off=None) -> PETSc.Mat:
     """An AIJ matrix of ``sizes`` (PETSc's ((rows, global rows), (columns, global columns))) on ``comm`` whose rows on
     this rank are the scipy CSR ``diag`` (the diagonal block: this rank's columns, numbered from its first) and
-    ``off`` (global columns outside them; None where there are none). Collective."""
+    ``off`` (global columns outside them; None where there are none), whose arrays PETSc keeps (collective)."""
     (n, M), (m, N) = sizes
     if diag.shape != (n, m) or (off is not None and off.shape != (n, N)):
         raise ValueError(f"the blocks' shapes {diag.shape} and {None if off is None else off.shape} do not match this "
                          f"rank's {n} rows, {m} columns of {N}")
     if comm.getSize() == 1:
-        return _seq(diag if off is None else diag + off, comm)
-    seq = _seq(diag)
-    other = _seq(sp.csr_matrix((n, N)) if off is None else off)
-    lib, it = _c_api()
-    for block in (seq, other):
-        block.incRef()                  # the MPIAIJ takes both blocks without a reference of its own
-    made = ctypes.c_void_p()
-    if lib.MatCreateMPIAIJWithSeqAIJ(_c_comm(comm), it(M), it(N), ctypes.c_void_p(seq.handle),
-                                     ctypes.c_void_p(other.handle), None, ctypes.byref(made)):
-        raise RuntimeError("PETSc's MatCreateMPIAIJWithSeqAIJ failed")
-    return _wrapped(made)
+        return PETSc.Mat().createAIJWithArrays(sizes, _arrays(diag if off is None else diag + off), comm=comm)
+    other = sp.csr_matrix((n, N)) if off is None else off
+    return PETSc.Mat().createAIJWithArrays(sizes, (_arrays(diag), _arrays(other)), comm=comm)
 
 
-def _c_comm(comm):
-    """The C MPI_Comm of the PETSc ``comm`` as a ctypes value (an int in MPICH, a pointer in Open MPI)."""
-    from mpi4py import MPI
-
-    handle = MPI._handleof(comm.tompi4py())
-    return (ctypes.c_int if MPI._sizeof(MPI.Comm) == ctypes.sizeof(ctypes.c_int) else ctypes.c_void_p)(handle)
-
-
-def _seq(block, comm=PETSc.COMM_SELF) -> PETSc.Mat:
-    """A SEQAIJ on ``comm`` (of one rank) on the arrays of the scipy CSR ``block`` (column indices sorted in each row;
-    PETSc's integer type)."""
+def _arrays(block) -> tuple:
+    """The CSR arrays of the scipy ``block`` in PETSc's types, its column indices sorted in each row."""
     if not block.has_sorted_indices:
         block.sort_indices()
-    arrays = (block.indptr.astype(PETSc.IntType, copy=False), block.indices.astype(PETSc.IntType, copy=False),
-              np.ascontiguousarray(block.data, dtype=PETSc.ScalarType))
-    return PETSc.Mat().createAIJWithArrays(block.shape, arrays, comm=comm)
-
-
-def _wrapped(made) -> PETSc.Mat:
-    """A petsc4py Mat for the C Mat at ``made``, which then holds its only reference: composed on a scratch object
-    for a moment and queried back (petsc4py makes no wrapper from a bare handle)."""
-    lib = _c_api()[0]
-    scratch = PETSc.Mat()
-    scratch.create(PETSc.COMM_SELF)
-    name = _SLOT.encode()
-    lib.PetscObjectCompose(ctypes.c_void_p(scratch.handle), name, made)
-    mat = scratch.query(_SLOT)
-    scratch.destroy()                   # drops the composed reference
-    lib.PetscObjectDereference(made)    # and the one MatCreateMPIAIJWithSeqAIJ made: the wrapper holds the last
-    return mat
+    return (block.indptr.astype(PETSc.IntType, copy=False), block.indices.astype(PETSc.IntType, copy=False),
+            np.ascontiguousarray(block.data, dtype=PETSc.ScalarType))
