@@ -8,6 +8,7 @@ product are each rank's rows too (:mod:`.galerkin`).
 from __future__ import annotations
 
 import contextlib
+
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
@@ -15,9 +16,9 @@ from petsc4py import PETSc
 from ..aijarrays import aij, split
 from ..collective import Collective
 from ..petscmat import diagonal_block, local_rows
-from . import galerkin
 from ..twolevel.aggregation import aggregates, decoupled_rows
 from ..twolevel.csr import row_sums
+from . import galerkin
 
 PASSES = 1              # aggregation passes a level (2-D DMDA at 65 536 rows: one pass 18 CG iterations, two 23-28)
 JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound of D^-1 A (galerkin.smoothed_rows)
