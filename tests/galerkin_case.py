@@ -48,7 +48,7 @@ def _against_petsc(A):
             level.refresh()
         start = A.getOwnershipRange()[0]
         with local_rows(A) as rows:
-            omega = JACOBI / gershgorin(rows, start, A.getComm())
+            omega = JACOBI / gershgorin(rows, rows.diagonal(k=start), A.getComm())
         lo, hi = level.W.getOwnershipRangeColumn()
         W0 = aij(A.getComm(), level.W.getSizes(), *split(level.W0[:A.getLocalSize()[0]], lo, hi))
         W = A.matMult(W0)                                           # W0 - omega D^-1 A W0

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from ..aijarrays import aij, split
-from ..petscmat import ghost_values, local_rows
+from ..petscmat import ghost_values, read_csr
 
 
 class Halo:
@@ -60,13 +60,12 @@ def diagonal_entries(A) -> np.ndarray:
     return at if at.size == A.shape[0] else None
 
 
-def smoothed_rows(A, W0, at, omega):
-    """This rank's rows of W = (I - omega D^-1 A) W0 (``W0``: :func:`tentative`; a row whose diagonal is zero or
-    absent is scaled by 1 in D's place), scipy CSR with global coarse columns, sorted: one sparse product of the
-    smoother, whose diagonal lies at A's (``at``, :func:`diagonal_entries`; None: added apart), with W0 (entries that
-    cancel are dropped). ``A``: this rank's rows, :meth:`Halo.matrix`."""
+def smoothed_rows(A, d, W0, at, omega):
+    """This rank's rows of W = (I - omega D^-1 A) W0 (``d``: A's diagonal; ``W0``: :func:`tentative`; a row whose
+    diagonal is zero or absent is scaled by 1 in D's place), scipy CSR with global coarse columns, sorted: one sparse
+    product of the smoother, whose diagonal lies at A's (``at``, :func:`diagonal_entries`; None: added apart), with W0
+    (entries that cancel are dropped). ``A``: this rank's rows, :meth:`Halo.matrix`."""
     n = A.shape[0]
-    d = A.diagonal()
     scale = -omega / np.where(d != 0, d, 1.0)
     S = sp.csr_matrix((A.data * np.repeat(scale, np.diff(A.indptr)), A.indices, A.indptr), shape=A.shape)
     if at is not None:
@@ -87,7 +86,7 @@ def galerkin(mat, A, ghosts, W_rows, W, first, k):
         AW = A @ sp.vstack([W_rows, _rows_of(W, ghosts)], format="csr")
     else:
         AW = A @ W_rows
-    C = (W_rows.T.tocsr() @ AW).tocsr()
+    C = W_rows.T.tocsr() @ AW
     C.sort_indices()
     C = _summed(C, first, k, mat.getComm())
     return aij(mat.getComm(), ((k, K), (k, K)), *split(C, first, first + k))
@@ -100,8 +99,7 @@ def _rows_of(W, rows) -> sp.csr_matrix:
     every = PETSc.IS().createStride(K, 0, 1, comm=PETSc.COMM_SELF)
     (sub,) = W.createSubMatrices(want, every)
     try:
-        with local_rows(sub, copy=True) as out:
-            return sp.csr_matrix(out, shape=(rows.size, K))
+        return read_csr(sub)
     finally:
         for obj in (want, every, sub):
             obj.destroy()

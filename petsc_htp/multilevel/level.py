@@ -47,9 +47,10 @@ class Level:
     def _numeric(self, rows, start):
         """The leaf-block matrix, the smoothed coarse space and the next operator from the values ``rows``."""
         self.B = None if self.pattern is None else self.pattern.matrix(self.A, rows)
-        bound = gershgorin(rows, start, self.A.getComm())
         local = self.halo.matrix(rows, start)
-        W_rows = galerkin.smoothed_rows(local, self.W0, self.at, self.jacobi / bound)
+        diag = local.data[self.at] if self.at is not None else local.diagonal()
+        bound = gershgorin(rows, diag, self.A.getComm())
+        W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / bound)
         self.W = aij(self.A.getComm(), (self.A.getSizes()[0], (self.k, self.n_coarse)),
                      *split(W_rows, self.first, self.first + self.k))
         self.below = galerkin.galerkin(self.A, local, self.halo.ghosts, W_rows, self.W, self.first, self.k)
@@ -120,10 +121,10 @@ def leaf_columns(leaf, lone):
     return (np.where(keep[leaf], column[leaf], -1) if n else np.zeros(0, dtype=np.int64)), int(keep.sum())
 
 
-def gershgorin(rows, start, comm) -> float:
-    """The largest row sum of |D^-1 A| over the ranks: a bound on the spectral radius of D^-1 A (2 for an M-matrix's
-    diagonally dominant rows)."""
-    diag = np.abs(rows.diagonal(k=start)) if rows.shape[0] else np.ones(0)
+def gershgorin(rows, diag, comm) -> float:
+    """The largest row sum of |D^-1 A| over the ranks (``diag``: D, this rank's ``rows``' diagonal): a bound on the
+    spectral radius of D^-1 A (2 for an M-matrix's diagonally dominant rows)."""
+    diag = np.abs(diag)
     sums = row_sums(rows.indptr, np.abs(rows.data))
     local = float(np.max(sums / np.where(diag > 0, diag, np.inf))) if rows.shape[0] else 0.0
     return max(float(Collective(comm).max_array(np.array([local]))[0]), 1.0)
