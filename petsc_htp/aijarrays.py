@@ -20,9 +20,9 @@ def split(rows, start, stop):
         return sp.csr_matrix((rows.data, rows.indices - start if start else rows.indices, rows.indptr),
                              shape=(rows.shape[0], stop - start)), None
     n = rows.shape[0]
-    row = np.repeat(np.arange(n), np.diff(rows.indptr))
-    own = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(row[inside], minlength=n), out=own[1:])
+    own = np.zeros(rows.indices.size + 1, dtype=rows.indptr.dtype)
+    np.cumsum(inside, out=own[1:])              # entries inside up to each one: at each row's start, the row pointer
+    own = own[rows.indptr]
     diag = sp.csr_matrix((rows.data[inside], rows.indices[inside] - start, own), shape=(n, stop - start))
     off = sp.csr_matrix((rows.data[~inside], rows.indices[~inside], rows.indptr - own), shape=rows.shape)
     return diag, off

@@ -99,7 +99,8 @@ def test_tetrahedra_need_the_smoothers_damped():
 
 @pytest.mark.parametrize("smoother", ["auto", "leaves"])
 def test_two_ranks_build_the_levels_each_from_its_own_rows(smoother):
-    """On 2 ranks (rows split in the case's own order) the V-cycle converges as on one, the coarse LU on each rank;
+    """On 2 ranks (rows split in the case's own order) the V-cycle converges as on one, the coarse operator's banded
+    Cholesky factor on each rank;
     the 2-D graph's smoother is Jacobi, and ``-htp_ml_smoother leaves`` takes PCBJACOBI's blocks as the leaf solve."""
     mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "examples" / "matrix_file.py"), "-case",
@@ -108,7 +109,7 @@ def test_two_ranks_build_the_levels_each_from_its_own_rows(smoother):
                           "-htp_variant", "multilevel", "-htp_ml_smoother", smoother, "-ksp_view"], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
-    assert "type: redundant" in out.stdout
+    assert "gathered and factored on each of the 2 ranks" in out.stdout and "type: redundant" not in out.stdout
     levels = out.stdout.split("Down solver (pre-smoother) on level 1")[1].split("Up solver")[0]
     if smoother == "leaves":
         leaf = levels.split("type: bjacobi")[1]                              # the blocks' own solver: exact
@@ -246,6 +247,30 @@ def test_the_coarsest_size_follows_the_graph_dimension():
         reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
         text = lines(ksp)
         assert reason > 0 and relres <= 1e-8 and f"at most {most} rows" in text, text
+
+
+def test_the_coarsest_operator_takes_its_band_unless_too_wide_indefinite_or_set_by_the_user():
+    """The coarse solve: the banded Cholesky factor of the coarsest operator where its band is narrow enough; the
+    sparse LU where it would hold more than COARSE_BAND values (a 160^2 grid: 25 600 rows, 160 wide), where a pivot
+    is negative, or where the user set a coarse option; either solve is exact, so the iterations agree."""
+    import scipy.sparse as sp
+
+    from petsc_htp.multilevel.cycle import COARSE_BAND, banded
+
+    A, b = CASES["dmda2d"](16384, 0)
+    ours = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000)
+    theirs = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000,
+                   htp_ml_mg_coarse_pc_type="lu")
+    assert "the coarsest by banded Cholesky" in lines(ours[3]) and "the coarsest by lu" in lines(theirs[3])
+    assert ours[0] > 0 and theirs[0] > 0 and abs(ours[1] - theirs[1]) <= 1, (ours[:3], theirs[:3])
+    side = 160
+    grid = sp.kron(sp.identity(side), sp.diags([-1, 4, -1], [-1, 0, 1], (side, side))) + sp.diags(
+        [-1, -1], [-side, side], (side * side, side * side))
+    assert side * side * (side + 1) > COARSE_BAND and banded(_mat(sp.csr_matrix(grid))) is None
+    chain = sp.csr_matrix(sp.diags([-1, 1, -1], [-1, 0, 1], (50, 50)))             # symmetric, indefinite
+    assert banded(_mat(chain)) is None
+    band, grounded = banded(_mat(sp.csr_matrix(sp.diags([-1, 2.5, -1], [-1, 0, 1], (50, 50)))))
+    assert band.width == 1 and grounded.size == 0
 
 
 def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():

@@ -955,6 +955,14 @@ def test_row_sums_reduce_each_row_and_give_zero_for_empty_rows():
     A = sp.csr_matrix(np.array([[1.0, -1.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 5.0], [0.0, 0.0, 0.0]]))
     np.testing.assert_array_equal(row_sums(A.indptr, A.data), [0.0, 0.0, 7.0, 0.0])
     np.testing.assert_array_equal(row_sums(np.array([0]), np.zeros(0)), np.zeros(0))
+    rng = np.random.default_rng(0)
+    for n in (100, 40_000):                # both ways: per-row reductions, and scipy's product from PRODUCT_MIN entries
+        counts = rng.integers(0, 10, n)
+        counts[[n // 2, n - 1]] = 0        # an empty row inside, and one at the end
+        indptr = np.concatenate(([0], np.cumsum(counts)))
+        B = sp.csr_matrix((rng.standard_normal(indptr[-1]), rng.integers(0, n, indptr[-1]), indptr), shape=(n, n))
+        np.testing.assert_allclose(row_sums(B.indptr, B.data), np.asarray(B.sum(axis=1)).ravel(), rtol=1e-12,
+                                   atol=1e-15)
 
 
 def test_pieces_follow_entries_either_way_and_overlap_keeps_int64_keys():

@@ -149,7 +149,7 @@ class MultilevelPC:
     def nbytes(self) -> int:
         """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, every level's leaf
         blocks (where made), coarse space and coarse operator, the smoothers' factors (the leaf solves') and the
-        coarse LU (PCREDUNDANT's gathered one not counted)."""
+        coarse factor (the banded one, gathered on every rank, counted; PCREDUNDANT's gathered LU not)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
             mats += [m for m in (level.B, level.W) if m is not None]
@@ -164,7 +164,7 @@ class MultilevelPC:
         h, t = self.hierarchy, self.times
         rows = " -> ".join(str(n) for n in h.rows())
         ratio = ", ".join(f"{level.A.getSize()[0] / level.W.getSize()[1]:.1f}" for level in h.levels)
-        return [f"levels: {len(h.rows())}, rows {rows} (the coarsest by {self.pc.getMGCoarseSolve().getPC().getType()}"
+        return [f"levels: {len(h.rows())}, rows {rows} (the coarsest by {cycle.coarse_text(self.pc)}"
                 f"; at most {self.coarse_max} rows unless the levels ran out); "
                 f"operator complexity {h.complexity():.2f}",
                 f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"

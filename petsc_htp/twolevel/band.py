@@ -131,8 +131,9 @@ class BandPC:
     which); a pivot that vanishes is grounded (:meth:`Band.factor`; :attr:`grounded`: the rows, in the operator's
     order)."""
 
-    def __init__(self):
+    def __init__(self, made=None):
         self.band, self.info, self.grounded = None, 0, np.zeros(0, dtype=np.int64)
+        self.made = made            # (Band, rows grounded): factored already for the operator's values at the first setUp
         self.mpi, self.sizes, self.start, self.work = None, None, 0, None   # several ranks: the rows each owns,
         # this one's first, work arrays
 
@@ -147,9 +148,12 @@ class BandPC:
             if self.mpi is not None:
                 self.sizes, self.start = np.array(self.mpi.allgather(mine.shape[0])), mat.getOwnershipRange()[0]
                 self.work = np.empty(rows.shape[0]), np.empty(rows.shape[0])   # the gathered x and the solve
-            if self.band is None or not self.band.same(rows):
-                self.band = Band(rows)
-            self.info, self.grounded = self.band.factor(rows.data)
+            if self.made is not None:
+                (self.band, self.grounded), self.made = self.made, None
+            else:
+                if self.band is None or not self.band.same(rows):
+                    self.band = Band(rows)
+                self.info, self.grounded = self.band.factor(rows.data)
         if self.info > 0:
             raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (in its band's order) "
                              "is negative: the matrix is not positive semidefinite")
@@ -169,6 +173,11 @@ class BandPC:
         y.array_w[...] = out[self.start:self.start + y.getLocalSize()]
 
     applyTranspose = apply
+
+    @property
+    def values(self) -> int:
+        """Values of the factor this rank holds (0 before the set-up)."""
+        return 0 if self.band is None else self.band.nbytes // 8
 
     def describe(self) -> str:
         """The factor in words."""

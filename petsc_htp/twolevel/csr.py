@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+
+PRODUCT_MIN = 65536     # entries from which row_sums takes scipy's product
 
 
 def row_entries(indptr, rows) -> tuple:
@@ -19,9 +22,15 @@ def indptr_of(rows, n) -> np.ndarray:
 
 
 def row_sums(indptr, data) -> np.ndarray:
-    """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row): one reduction
-    per row, with no per-entry array."""
-    sums = np.zeros(indptr.size - 1)
+    """Each row's sum of the values ``data`` of a CSR matrix with ``indptr`` (0 for an empty row): from
+    :data:`PRODUCT_MIN` entries scipy's compiled product with a one-column matrix (every entry in column 0) and a one
+    (2.7 against 4.9 ms for 262 144 rows of 5 entries), below that one reduction per nonempty row (scipy's matrix
+    costs about 0.1 ms to make)."""
+    n = indptr.size - 1
+    if data.size >= PRODUCT_MIN:
+        ones = sp.csr_matrix((data, np.zeros(data.size, dtype=indptr.dtype), indptr), shape=(n, 1))
+        return np.asarray(ones @ np.ones(1), dtype=np.float64)
+    sums = np.zeros(n)
     full = indptr[:-1] < indptr[1:]
     if full.any():
         sums[full] = np.add.reduceat(data, indptr[:-1][full])

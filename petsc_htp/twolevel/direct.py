@@ -250,7 +250,7 @@ class DirectPC:
     @property
     def nbytes(self) -> int:
         """Bytes of the factor (:func:`.directview.factor_bytes`)."""
-        return directview.factor_bytes(self, BLOCKED, OWN, self._band())
+        return directview.factor_bytes(self, BLOCKED, OWN)
 
     def describe(self) -> list:
         """Lines for ``-ksp_view`` (:func:`.directview.describe`)."""

@@ -18,9 +18,9 @@ GATHERED_TYPE = {"cholesky": "lu"}                     # several ranks: the gath
 GATHERED_TEXT = {"cholesky": "one sparse LU factor (exact: the solve starts on x0 = M r0)"}
 
 
-def factor_bytes(d, blocked, own, band) -> int:
+def factor_bytes(d, blocked, own) -> int:
     """Bytes of the factor of the :class:`.direct.DirectPC` ``d`` (``blocked``: its kinds of one ICC(0) per rank;
-    ``own``: its kinds that gather nothing; ``band``: its banded factor's context, or None). On several ranks the
+    ``own``: its kinds that gather nothing; a banded factor's band by :func:`.inner.held`). On several ranks the
     whole matrix's values, which every rank gathers and factors (PCREDUNDANT does not show its factor)."""
     kind = d.pc.getType()                        # options under the prefix may have made another PC
     if kind == "telescope":
@@ -30,8 +30,6 @@ def factor_bytes(d, blocked, own, band) -> int:
         return 8 * held(sub[0].getPC())
     if d.ranks > 1 and d.kind not in own:
         return d.gathered
-    if band is not None:
-        return band.band.nbytes if band.band is not None else 0
     return 8 * held(d.pc)
 
 

@@ -150,6 +150,8 @@ def held(pc) -> int:
         return held(pc.getKSP().getPC())
     if kind in FACTOR_PCS:
         return int(pc.getFactorMatrix().getInfo()["nz_used"])
+    if kind == "python":                        # a factor of the project's own (BandPC's band)
+        return int(getattr(pc.getPythonContext(), "values", 0))
     if kind not in ("gamg", "mg"):
         return 0
     levels = pc.getMGLevels()
