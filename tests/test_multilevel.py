@@ -264,12 +264,12 @@ def test_the_coarsest_operator_takes_its_band_unless_too_wide_indefinite_or_set_
     assert "the coarsest by banded Cholesky" in lines(ours[3]) and "the coarsest by lu" in lines(theirs[3])
     assert ours[0] > 0 and theirs[0] > 0 and abs(ours[1] - theirs[1]) <= 1, (ours[:3], theirs[:3])
     side = 160
-    grid = sp.kron(sp.identity(side), sp.diags([-1, 4, -1], [-1, 0, 1], (side, side))) + sp.diags(
-        [-1, -1], [-side, side], (side * side, side * side))
+    grid = sp.kron(sp.identity(side), sp.diags([-1.0, 4.0, -1.0], [-1, 0, 1], (side, side))) + sp.diags(
+        [-1.0, -1.0], [-side, side], (side * side, side * side))
     assert side * side * (side + 1) > COARSE_BAND and banded(_mat(sp.csr_matrix(grid))) is None
-    chain = sp.csr_matrix(sp.diags([-1, 1, -1], [-1, 0, 1], (50, 50)))             # symmetric, indefinite
+    chain = sp.csr_matrix(sp.diags([-1.0, 1.0, -1.0], [-1, 0, 1], (50, 50)))             # symmetric, indefinite
     assert banded(_mat(chain)) is None
-    band, grounded = banded(_mat(sp.csr_matrix(sp.diags([-1, 2.5, -1], [-1, 0, 1], (50, 50)))))
+    band, grounded = banded(_mat(sp.csr_matrix(sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], (50, 50)))))
     assert band.width == 1 and grounded.size == 0
 
 
