@@ -87,7 +87,7 @@ HELP = {
 }
 
 MULTILEVEL_HELP = (    # read by petsc_htp.multilevel.setup.MultilevelPC (with PCMG's own under the same prefix)
-    ("coarse_max", "int", 5000, "rows of the coarsest operator, solved by one LU (1000 on a 3-D graph)"),
+    ("coarse_max", "int", 5000, "rows of the coarsest operator, factored once (1000 on a 3-D graph)"),
     ("max_levels", "int", 12, "levels at most, the coarsest included"),
     ("jacobi", "real", 1.4, "the coarse vectors' Jacobi step, over the Gershgorin bound of D^-1 A"),
     ("damping", "real", 1.5, "the largest eigenvalue of s M^-1 A the smoothers' Richardson scale s takes, in (0, 2) "

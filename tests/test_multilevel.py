@@ -252,7 +252,8 @@ def test_the_coarsest_size_follows_the_graph_dimension():
 def test_the_coarsest_operator_takes_its_band_unless_too_wide_indefinite_or_set_by_the_user():
     """The coarse solve: the banded Cholesky factor of the coarsest operator where its band is narrow enough; the
     sparse LU where it would hold more than COARSE_BAND values (a 160^2 grid: 25 600 rows, 160 wide), where a pivot
-    is negative, or where the user set a coarse option; either solve is exact, so the iterations agree."""
+    is negative, or where the user set the coarse PC (a coarse KSP option alone keeps the band); either solve is
+    exact, so the iterations agree."""
     import scipy.sparse as sp
 
     from petsc_htp.multilevel.cycle import COARSE_BAND, banded
@@ -262,6 +263,9 @@ def test_the_coarsest_operator_takes_its_band_unless_too_wide_indefinite_or_set_
     theirs = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000,
                    htp_ml_mg_coarse_pc_type="lu")
     assert "the coarsest by banded Cholesky" in lines(ours[3]) and "the coarsest by lu" in lines(theirs[3])
+    kept = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000,
+                 htp_ml_mg_coarse_ksp_type="preonly")                # a coarse KSP option alone keeps the band
+    assert "the coarsest by banded Cholesky" in lines(kept[3]) and kept[1] == ours[1]
     assert ours[0] > 0 and theirs[0] > 0 and abs(ours[1] - theirs[1]) <= 1, (ours[:3], theirs[:3])
     side = 160
     grid = sp.kron(sp.identity(side), sp.diags([-1.0, 4.0, -1.0], [-1, 0, 1], (side, side))) + sp.diags(

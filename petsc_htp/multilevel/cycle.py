@@ -72,8 +72,9 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
         count = len(ops)
         pc.setMGLevels(count)
         pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
-        own = any(name.startswith(prefix + "mg_coarse_") for name in PETSc.Options().getAll())   # the user's
-        made = None if own else banded(ops[-1])
+        own = any(name.startswith((prefix + "mg_coarse_pc_", prefix + "mg_coarse_redundant_"))
+                  for name in PETSc.Options().getAll())        # the user's coarse solver
+        made = None if own or count < 2 else banded(ops[-1])
         with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None)):
             pc.setFromOptions()
             for level in range(1, count):
@@ -110,17 +111,21 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
 
 def banded(A):
     """The banded Cholesky factor of the coarsest operator ``A`` (LAPACK's, of its rows gathered on every rank) as
-    (:class:`..twolevel.band.Band`, rows grounded) for :class:`..twolevel.band.BandPC`, the coarse solve where the user
-    set no ``mg_coarse_`` option: where its band in its own or reverse Cuthill-McKee order holds at most
-    :data:`COARSE_BAND` values and has no negative pivot; else None, the sparse LU in nested-dissection order
-    (collective). Set-up against the LU's, one rank, 2026-11-28: the 2-D DMDA's coarsest operators of 1 682 rows
-    (65 536 fine rows, band 146 wide) 3.8 against 14.5 ms, 3 202 (1M, 274 wide) 14-18 against 77-109, 1 658 (4M,
-    235) 8.7 against 125; the 3-D DMDA's (64^3, multilevel) 334 rows (279 wide) 4.0 against 22.8, 3 146 (1 098 wide)
-    110 against 2 733. A solve with the band costs about what it costs with the LU up to there (0.6 against 0.9 ms;
-    6.3 against 4.9); 23 533 rows 528 wide (12.4M values) took 282 against 985 ms but 24 against 8.7 ms a solve."""
+    (:class:`..twolevel.band.Band`, rows grounded) for :class:`..twolevel.band.BandPC`, the coarse solve where there
+    are levels and the user set no ``mg_coarse_pc_`` option (nor PCREDUNDANT's): where its band in its own or reverse
+    Cuthill-McKee order holds at most :data:`COARSE_BAND` values and no rank's factor has a negative pivot; else None,
+    the sparse LU in nested-dissection order (collective). Set-up against the LU's, one rank, 2026-11-28
+    (``results/coarse-20261128/band.txt``): the 2-D DMDA's coarsest operators of 1 682 rows (65 536 fine rows, band
+    146 wide) 3.9 against 14.3 ms, 3 202 (1M, 274 wide) 19 against 83, 1 658 (4M, 235) 9.6 against 69; the 3-D
+    DMDA's (64^3, multilevel) 334 rows (279 wide) 3.4 against 25.6, 3 146 (1 098 wide) 110 against 2 898. A solve
+    with the band costs no more than one with the LU up to there (0.61 against 0.70 ms; 5.1 against 5.4); 23 533 rows
+    528 wide (12.4M values) took 345 against 1 622 ms but 27 against 11 ms a solve."""
+    from ..collective import Collective
     from ..petscmat import gathered_rows, local_rows
     from ..twolevel.band import Band, ordering
 
+    if 2 * A.getSize()[0] > COARSE_BAND:             # no band of coupled rows fits: nothing gathered
+        return None
     mpi = A.getComm().tompi4py() if A.getComm().getSize() > 1 else None
     with local_rows(A) as mine:
         rows = mine if mpi is None else gathered_rows(mine, mpi)
@@ -129,13 +134,16 @@ def banded(A):
             return None
         band = Band(rows, order)
         info, grounded = band.factor(rows.data)
-    return (band, grounded) if info == 0 else None          # a negative pivot (a shifted problem's): the LU
+    ok = Collective(A.getComm()).min_array(np.array([info == 0], dtype=np.int64))[0]   # every rank alike
+    return (band, grounded) if ok else None          # a negative pivot (a shifted problem's): the LU
 
 
 def coarse_text(pc) -> str:
     """The coarse solver of the PCMG ``pc`` in a few words: its PC type, or the banded factor's description."""
     coarse = pc.getMGCoarseSolve().getPC()
-    return coarse.getPythonContext().describe() if coarse.getType() == PETSc.PC.Type.PYTHON else coarse.getType()
+    python = coarse.getType() == PETSc.PC.Type.PYTHON
+    describe = getattr(coarse.getPythonContext(), "describe", None) if python else None
+    return describe() if describe is not None else coarse.getType()
 
 
 def described(pc, scales, damping) -> str:

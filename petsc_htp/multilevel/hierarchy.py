@@ -1,11 +1,11 @@
-"""The levels from the finest operator down to one small enough for a sparse LU."""
+"""The levels from the finest operator down to one small enough for one factor (:func:`.cycle.banded`)."""
 from __future__ import annotations
 
 from petsc4py import PETSc
 
 from .level import JACOBI, Level
 
-COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, solved by one LU, by the graph's dimension (2-D,
+COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, factored once, by the graph's dimension (2-D,
 # one rank, CG to 1e-8, single solves, 5 000 against 1 000, 2026-11-28: 1M rows dmda2d 1 945 / 1 966 ms, lognormal
 # 1 531 / 1 779 (18 / 25 iterations), neumann 2 037 / 2 167, free surface 1 419 / 1 449; 65 536 rows level but
 # lognormal 81 / 99 (15 / 22); 20 000 slower at 65 536 rows; 3-D: the 64^3 DMDA's setup 1 959 against 937 ms)

@@ -157,7 +157,9 @@ class MultilevelPC:
         total = sum(int(m.getInfo()["nz_used"]) for m in mats)
         pcs = [self.pc.getMGSmoother(level).getPC() for level in range(1, self.pc.getMGLevels())]
         pcs = [pc.getBJacobiSubKSP()[0].getPC() if pc.getType() == "bjacobi" else pc for pc in pcs]
-        return 12 * (total + sum(held(pc) for pc in pcs + [self.pc.getMGCoarseSolve().getPC()]))
+        coarse = self.pc.getMGCoarseSolve().getPC()
+        band = coarse.getType() == PETSc.PC.Type.PYTHON                  # a band's values: 8 bytes each
+        return 12 * (total + sum(held(pc) for pc in pcs)) + (8 if band else 12) * held(coarse)
 
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
