@@ -1,6 +1,6 @@
 """Whether a right-hand side lies in the range of a singular matrix the V-cycles take (:mod:`..twolevel.consistency`):
-their coarse factor is shifted or grounded, so a singular matrix without its null space and a b outside its range would end in a
-CONVERGED_RTOL far from any solution (a true relative residual of 74 on a 65 536-row Neumann square)."""
+their coarse factor is shifted or grounded, so a singular matrix without its null space and a b outside its range
+would end in a CONVERGED_RTOL far from any solution (a true relative residual of 74 on a 65 536-row Neumann square)."""
 from __future__ import annotations
 
 import numpy as np

@@ -129,11 +129,12 @@ class BandPC:
     application gathering x (a 1 024-row matrix on 2 ranks: 0.5 ms to gather, order and factor, where PCREDUNDANT's
     LU took 2.2). A pivot that is not positive is an error naming the matrix indefinite (:attr:`info`, LAPACK's, says
     which); a pivot that vanishes is grounded (:meth:`Band.factor`; :attr:`grounded`: the rows, in the operator's
-    order)."""
+    order). ``made``: (:class:`Band`, rows grounded) already factored for the operator's values, which the first
+    setUp takes (the multilevel V-cycle's coarse solve: :func:`..multilevel.cycle.banded`)."""
 
     def __init__(self, made=None):
         self.band, self.info, self.grounded = None, 0, np.zeros(0, dtype=np.int64)
-        self.made = made            # (Band, rows grounded): factored already for the operator's values at the first setUp
+        self.made = made            # (Band, rows grounded) factored for the operator's values at the first setUp
         self.mpi, self.sizes, self.start, self.work = None, None, 0, None   # several ranks: the rows each owns,
         # this one's first, work arrays
 
