@@ -139,24 +139,26 @@ class BandPC:
         # this one's first, work arrays
 
     def setUp(self, pc):
-        """Order (on a new pattern) and factor the operator's values (collective)."""
+        """Order (on a new pattern) and factor the operator's values, or take the factor :attr:`made` for them
+        (collective)."""
         from ..petscmat import gathered_rows, local_rows
 
         mat = pc.getOperators()[1]
+        n = mat.getSize()[0]
         self.mpi = mat.getComm().tompi4py() if mat.getComm().getSize() > 1 else None
+        if self.mpi is not None:
+            self.sizes, self.start = np.array(self.mpi.allgather(mat.getLocalSize()[0])), mat.getOwnershipRange()[0]
+            self.work = np.empty(n), np.empty(n)                       # the gathered x and the solve
+        if self.made is not None:                                      # its maker read and gathered the rows
+            (self.band, self.grounded), self.made = self.made, None
+            return
         with local_rows(mat) as mine:
             rows = mine if self.mpi is None else gathered_rows(mine, self.mpi)
-            if self.mpi is not None:
-                self.sizes, self.start = np.array(self.mpi.allgather(mine.shape[0])), mat.getOwnershipRange()[0]
-                self.work = np.empty(rows.shape[0]), np.empty(rows.shape[0])   # the gathered x and the solve
-            if self.made is not None:
-                (self.band, self.grounded), self.made = self.made, None
-            else:
-                if self.band is None or not self.band.same(rows):
-                    self.band = Band(rows)
-                self.info, self.grounded = self.band.factor(rows.data)
+            if self.band is None or not self.band.same(rows):
+                self.band = Band(rows)
+            self.info, self.grounded = self.band.factor(rows.data)
         if self.info > 0:
-            raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {rows.shape[0]} (in its band's order) "
+            raise ValueError(f"the banded Cholesky factor's pivot {self.info} of {n} (in its band's order) "
                              "is negative: the matrix is not positive semidefinite")
         if self.info < 0:
             raise ValueError(f"the banded Cholesky factor still has null pivots after {GROUND_MAX} factorisations, "
