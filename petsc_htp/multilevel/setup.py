@@ -16,7 +16,7 @@ from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, leaves
 from .moved import WeakInside
-from .ranges import range_check
+from .ranges import Ranges
 
 
 RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
@@ -55,6 +55,7 @@ class MultilevelPC:
                              f"{', '.join(cycle.SMOOTHERS)}")
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
+        self.renew, self.penalty, self.ranges = False, None, Ranges(mat)
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
@@ -64,11 +65,14 @@ class MultilevelPC:
         rank's rows in the order of their leaves, so that a leaf's rows lie together whatever the user's numbering
         (P1 triangles numbered at random, 262 144 rows: setup + solve 1 685 against 1 235 ms; the 2-D DMDA at 1M rows,
         its own order: 2 908 against 3 180). New values of the pattern keep the finest level's leaves and make the
-        coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them (:meth:`moved`, a
-        new analysis) or a solve took more than :data:`RENEW` times the iterations of the first on them."""
+        coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them on some rank
+        (:meth:`moved`) or a solve took more than :data:`RENEW` times the iterations of the first on them: then the
+        hierarchy is built anew, the analysis (the whole-matrix choice, the order, the null components) kept."""
         self.times = {}
-        self.range = range_check(self.mat, rows)
-        if self.hierarchy is not None and not (self.first_its and self.its and self.its > RENEW * self.first_its):
+        self.range = self.ranges.check(rows)
+        renew, self.renew = Collective(self.mat.getComm()).any(self.renew), False
+        if self.hierarchy is not None and not renew and not (self.first_its and self.its
+                                                             and self.its > RENEW * self.first_its):
             self.pc.destroy()               # first: the old coarser levels it holds go before the new are made
             self.pc = None
             with phase("HTPLevels", self.times, "levels"):
@@ -100,18 +104,24 @@ class MultilevelPC:
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
 
     def moved(self, rows, penalty=None) -> bool:
-        """Whether new values ``rows`` (this rank's) moved away from the finest leaves (:mod:`.moved`) by more than
-        keeping them costs: a new analysis makes them anew. Unlike the two-level method, whose analysis costs several
-        solves, old leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed,
-        which inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept
-        as at commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was
-        measured (the extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time
-        values moved) does keeping them win when it is the smaller (:func:`..twolevel.spacereuse.stale_cost`)."""
+        """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from
+        the finest leaves (:mod:`.moved`) by more than keeping them costs, the next numeric step builds the hierarchy
+        anew (:attr:`renew`; the analysis kept: at 65 536 rows the whole-matrix choice and the null components took
+        15 of a frame's 110 ms of set-up). Unlike the two-level method, whose analysis costs several solves, old
+        leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed, which
+        inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept as at
+        commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
+        extra iterations old leaves took, at ms per iteration; else :attr:`penalty`, that cost the last time values
+        moved, or ``penalty``, an earlier analysis's) does keeping them win when it is the smaller
+        (:func:`..twolevel.spacereuse.stale_cost`). This rank's alone: :meth:`numeric` or's it over the ranks."""
         if self.weak is None or not self.weak.moved(rows):
             return False
         cost = stale_cost(self.leaf_its, self.ms_per_it)
-        cost = penalty if cost is None else cost
-        return cost is None or cost > self.build_ms - self.refresh_ms
+        if cost is not None:
+            self.penalty = cost
+        cost = cost if cost is not None else self.penalty if self.penalty is not None else penalty
+        self.renew = cost is None or cost > self.build_ms - self.refresh_ms
+        return False
 
     def mult(self, x, y):
         """y = one V-cycle applied to x (in the leaves' order where reordered)."""
