@@ -218,11 +218,13 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     ctx.setup.leaf_its, ctx.setup.refresh_ms = [its, its], 0.0
     its4, text = frame(moved.data)
     assert its4 <= its3 and "kept from" not in text and ctx.analysis_count == 1      # built anew
+    assert "leaves made anew for these values: a solve took" in text
     ctx.setup.leaf_its, ctx.setup.ms_per_it = [its4, its4 + 1000], 1e3      # as if old leaves had cost 1 000 s
     again, _ = foreign.dmda(2, 128, 1e3, 2)
     numeric = ctx.numeric_count
     its6, text = frame(again.data)
     assert ctx.analysis_count == 1 and ctx.numeric_count == numeric + 1 and "kept from" not in text
+    assert "leaves made anew for these values: the couplings moved away" in text
     assert its6 <= its + 2
     ksp.destroy()
     mat.destroy()

@@ -56,6 +56,7 @@ class MultilevelPC:
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.renew, self.penalty, self.ranges = False, None, Ranges(mat)
+        self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
 
@@ -71,8 +72,11 @@ class MultilevelPC:
         self.times = {}
         self.range = self.ranges.check(rows)
         renew, self.renew = Collective(self.mat.getComm()).any(self.renew), False
-        if self.hierarchy is not None and not renew and not (self.first_its and self.its
-                                                             and self.its > RENEW * self.first_its):
+        grew = bool(self.first_its and self.its and self.its > RENEW * self.first_its)
+        self.anew = (None if self.hierarchy is None else "the couplings moved away from the last ones" if renew
+                     else f"a solve took {self.its} iterations, more than {RENEW} x the first's {self.first_its}"
+                     if grew else None)
+        if self.anew is None and self.hierarchy is not None:
             self.pc.destroy()               # first: the old coarser levels it holds go before the new are made
             self.pc = None
             with phase("HTPLevels", self.times, "levels"):
@@ -187,7 +191,7 @@ class MultilevelPC:
                 + (f"; finest leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
                    + ("leaf blocks, " if self.smoother == "leaves" else "")
                    + "smoothed coarse vectors and Galerkin operator of the new values; the coarser levels made anew)"
-                   if self.age else ""),
+                   if self.age else f"; leaves made anew for these values: {self.anew}" if self.anew else ""),
                 f"memory on this rank: {self.nbytes / max(self.mat.getLocalSize()[0], 1):.0f} bytes per unknown"]
 
     def _free(self):
