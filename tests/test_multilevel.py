@@ -331,3 +331,33 @@ def test_each_ranks_own_products_match_petscs(ranks):
     for case, text in lines.items():
         diff, same = text.split()
         assert float(diff) < 1e-12 and same == "equal", (case, text)
+
+
+def test_a_hierarchy_whose_coarsest_components_are_all_grounded_spares_the_search_for_null_ones():
+    """The DMDA matrix (Dirichlet rows grounding its one coupled component): every component of the coarsest operator
+    holds a grounded coarse row, so the range check needs no components of A (none searched); beside a floating
+    Neumann square (a null component, nothing attached) one coarsest component has none, so the caller looks at A's
+    own components (bad_input_cases' inconsistent_multilevel_components: the floating one found null)."""
+    import scipy.sparse as sp
+
+    from petsc_htp.collective import Collective
+    from petsc_htp.multilevel.ranges import grounded_throughout
+    from petsc_htp.scenes import foreign
+
+    D, b = foreign.dmda(2, 64, 1e3, 0)
+    reason, its, relres, ksp, mat = solve(D, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=100)
+    setup = ksp.getPC().getPythonContext().setup
+    assert reason > 0 and len(setup.hierarchy.levels) >= 2 and setup.range is None and setup.ranges.components is None
+    ksp.destroy()
+    mat.destroy()
+    floating = sp.block_diag([D, foreign.neumann(30, 1e3, 0)[0]]).tocsr()
+    floating.sort_indices()
+    for A, grounded in ((D, True), (floating, False)):
+        mat = _mat(A)
+        rowsum = np.asarray(A.sum(axis=1)).ravel()
+        hierarchy = Hierarchy(mat, coarse_max=100)
+        assert len(hierarchy.levels) >= 2
+        assert grounded_throughout(hierarchy, np.abs(rowsum) > 1e-10 * A.diagonal(), Collective(mat.getComm())) \
+            == grounded
+        hierarchy.destroy()
+        mat.destroy()

@@ -25,7 +25,8 @@ JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound
 
 
 class Level:
-    """A level's operator ``A`` (PETSc), its leaves, the leaf-block matrix ``B`` (where ``blocks``: the leaf solves'
+    """A level's operator ``A`` (PETSc), its leaves, :attr:`column` (the coarse column of each of this rank's rows, on
+    this rank, -1 for none: :func:`leaf_columns`), the leaf-block matrix ``B`` (where ``blocks``: the leaf solves'
     smoother; else None), the coarse space ``W`` (A's rows by the next level's columns) and :attr:`below`, the next
     level's operator W^T A W (a new Mat, the caller's); ``rows``: this rank's rows of ``A`` where already read."""
 
@@ -35,7 +36,8 @@ class Level:
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
             self.leaf = leaves(A, rows) if leaf is None else leaf
-            column, self.k = leaf_columns(self.leaf, decoupled_rows(rows, start))
+            self.column, self.k = leaf_columns(self.leaf, decoupled_rows(rows, start))
+            column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
             self.halo = galerkin.Halo(rows, start)
             columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))

@@ -4,6 +4,7 @@ would end in a CONVERGED_RTOL far from any solution (a true relative residual of
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values
@@ -20,16 +21,22 @@ class Ranges:
     def __init__(self, mat):
         self.mat, self.components = mat, None
 
-    def check(self, rows):
+    def check(self, rows, hierarchy=None, perm=None):
         """The :class:`~..twolevel.consistency.RangeCheck` of the connected components of the matrix (this rank's
         ``rows``, its values now) whose row sums vanish, where no null space is attached and some do; else None
-        (collective)."""
+        (collective). Where the ``hierarchy`` built on it (its rows in the order ``perm``, where given) shows every
+        component grounded (:func:`grounded_throughout`), none is null: no components are looked for (the 2-D DMDA's
+        at 262 144 rows took 16 ms on one rank, 24 on two)."""
         mat = self.mat
         if mat.getNullSpace().handle:
             return None
         coll = Collective(mat.getComm())
         diag, rowsum = rows.diagonal(k=mat.getOwnershipRange()[0]), row_sums(rows.indptr, rows.data)
-        if not coll.any(nullspace.vanishing(rowsum, diag).any()):
+        vanishing = nullspace.vanishing(rowsum, diag)
+        if not coll.any(vanishing.any()):
+            return None
+        if hierarchy is not None and grounded_throughout(hierarchy, ~(vanishing if perm is None else vanishing[perm]),
+                                                         coll):
             return None
         if self.components is None:
             self.components = components(mat, rows, coll)
@@ -55,3 +62,28 @@ def components(mat, rows, coll) -> tuple:
     key = np.unique(row_comp[row[far]] * n_all + other)
     n_comp, comp = nullspace.components(n_all, coll.gather_rows(np.stack([key // n_all, key % n_all], 1)))
     return n_comp, comp[row_comp]
+
+
+def grounded_throughout(hierarchy, grounded, coll) -> bool:
+    """Whether every connected component of the :class:`~.hierarchy.Hierarchy`'s coarsest operator holds a coarse row
+    made from a grounded one (``grounded``: this rank's rows of the finest operator whose row sums do not vanish; each
+    level's leaves lift them), so that no component of the finest operator is null: a null component's leaves make
+    coarse rows that couple to no other (its smoothed coarse vectors stay in it), all ungrounded, down to the coarsest.
+    Where the products dropped entries that cancel, a component may split: the answer is then False, and the caller
+    looks at the finest operator itself. False without levels (collective: the coarsest gathered on every rank)."""
+    from ..petscmat import gathered_rows, local_rows
+
+    if not hierarchy.levels:
+        return False
+    for level in hierarchy.levels:
+        lifted = np.zeros(level.k, dtype=bool)
+        lifted[level.column[grounded & (level.column >= 0)]] = True
+        grounded = lifted
+    coarsest = hierarchy.coarsest
+    with local_rows(coarsest) as mine:
+        rows = mine if coll.size == 1 else gathered_rows(mine, coll.mpi)
+        if coll.size > 1:
+            grounded = np.concatenate(coll.mpi.allgather(grounded))
+        count, label = nullspace.graph_components(sp.csr_matrix((rows.data, rows.indices, rows.indptr),
+                                                                shape=(rows.shape[0],) * 2))
+    return bool(np.all(np.bincount(label[grounded], minlength=count) > 0))

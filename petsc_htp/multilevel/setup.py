@@ -70,7 +70,6 @@ class MultilevelPC:
         (:meth:`moved`) or a solve took more than :data:`RENEW` times the iterations of the first on them: then the
         hierarchy is built anew, the analysis (the whole-matrix choice, the order, the null components) kept."""
         self.times = {}
-        self.range = self.ranges.check(rows)
         renew, self.renew = Collective(self.mat.getComm()).any(self.renew), False
         grew = bool(self.first_its and self.its and self.its > RENEW * self.first_its)
         self.anew = (None if self.hierarchy is None else "the couplings moved away from the last ones" if renew
@@ -87,6 +86,7 @@ class MultilevelPC:
                 self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
             self.age += 1
             self.refresh_ms = sum(self.times.values())
+            self.range = self.ranges.check(rows, self.hierarchy, self.perm)
             return
         self._free()
         self.age, self.first_its, self.its, self.leaf_its = 0, None, None, []
@@ -106,6 +106,7 @@ class MultilevelPC:
         with phase("HTPCoarseFactor", self.times, "cycle"):
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
+        self.range = self.ranges.check(rows, self.hierarchy, self.perm)
 
     def moved(self, rows, penalty=None) -> bool:
         """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from
