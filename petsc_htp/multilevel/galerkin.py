@@ -25,10 +25,10 @@ class Halo:
         outside = (cols < start) | (cols >= start + self.n)
         self.ghosts, self.local = np.zeros(0, dtype=np.int64), None
         if outside.any():
-            self.ghosts = np.unique(cols[outside])
-            local = (cols - start).astype(np.int64)
-            local[outside] = self.n + np.searchsorted(self.ghosts, cols[outside])
-            self.local = local.astype(PETSc.IntType)
+            theirs = cols[outside]
+            self.ghosts = np.unique(theirs)
+            self.local = (cols - start).astype(PETSc.IntType, copy=False)      # numbers below n + ghosts: no overflow
+            self.local[outside] = self.n + np.searchsorted(self.ghosts, theirs)
 
     def matrix(self, rows, start) -> sp.csr_matrix:
         """``rows`` (the operator's values now, this pattern) with their columns so numbered."""
