@@ -155,7 +155,8 @@ class HTPPC(Inspection):
         A new analysis and its first numeric step are built aside and swapped in only when both succeed
         (a failure leaves the previous preconditioner as it was); a failed numeric step on the current
         analysis frees it (the PC is then cleanly empty). New values of the same pattern that call for new
-        leaves (the variant's ``moved``, on any rank) free the current analysis first: the new one reuses its memory
+        leaves (the variant's ``moved``, on any rank; the multilevel V-cycles make theirs in the numeric step) free the
+        current analysis first: the new one reuses its memory
         (built beside it, a 1M-row DMDA frame's setup took 4.1 against 2.7 s, the difference first touches of
         new pages), and a failure leaves the PC empty, as a failed numeric step does.
         """

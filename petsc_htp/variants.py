@@ -14,7 +14,7 @@ options prefix, with
   'divtol': the divergence tolerance}, given back after the solve), else None;
 - ``solved(setup, its)``: called after each KSPSolve with its iterations;
 - ``moved(analysis, A)``: whether new values of the same pattern call for a new analysis (leaves that follow
-  the couplings, once the couplings moved);
+  the couplings, once the couplings moved; the multilevel V-cycles make new leaves in their numeric step);
 - ``once(ksp, pc, setup)``: whether a solve by ``ksp`` calls for a new analysis (M applied once, PREONLY);
 - ``destroy(analysis)``: free what the analysis and its setups hold;
 - ``title``: what runs, in a few words; ``model``: a line naming the model, or None.
@@ -181,12 +181,14 @@ class TwoLevel:
             setup.solved(its, seconds)
 
     def moved(self, analysis, A) -> bool:
-        """Whether the new values ``A`` moved away from the leaves (a new analysis follows them), judged with what
-        old leaves cost the last time values moved (kept across analyses of the pattern)."""
+        """Whether the new values ``A`` moved away from the leaves (a new analysis follows them; the multilevel
+        V-cycles build their hierarchy anew in the numeric step instead, their ``renew``), judged with what old leaves
+        cost the last time values moved (kept across analyses of the pattern)."""
         from .twolevel.spacereuse import stale_cost
 
         moved = analysis.moved(A, self.stale_ms)          # a DirectPC only where its rows lost their dominance
-        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if moved and not getattr(analysis, "whole", False) \
+        renewed = moved or getattr(analysis, "renew", False)
+        cost = stale_cost(analysis.leaf_its, analysis.ms_per_it) if renewed and not getattr(analysis, "whole", False) \
             else None
         if cost is not None:
             self.stale_ms = cost

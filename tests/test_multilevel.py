@@ -333,31 +333,73 @@ def test_each_ranks_own_products_match_petscs(ranks):
         assert float(diff) < 1e-12 and same == "equal", (case, text)
 
 
-def test_a_hierarchy_whose_coarsest_components_are_all_grounded_spares_the_search_for_null_ones():
+def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_search_where_there_are_none():
     """The DMDA matrix (Dirichlet rows grounding its one coupled component): every component of the coarsest operator
-    holds a grounded coarse row, so the range check needs no components of A (none searched); beside a floating
-    Neumann square (a null component, nothing attached) one coarsest component has none, so the caller looks at A's
-    own components (bad_input_cases' inconsistent_multilevel_components: the floating one found null)."""
+    holds a coarse row lifted from a grounded one, so no component of A is looked for; beside a floating Neumann
+    square (a null component, nothing attached) one coarsest component holds none: its last row is grounded in the
+    coarsest factor (at contrast 1e6 rounding hid its null pivot, and CG stopped with DIVERGED_INDEFINITE_MAT), and the
+    components of A are found, the floating one null; a null pair of rows, which shrinks to a coarse row coupled to
+    nothing, leaves the hierarchy unable to tell (None), and the components of A find it."""
     import scipy.sparse as sp
 
+    import petsc_htp
     from petsc_htp.collective import Collective
-    from petsc_htp.multilevel.ranges import grounded_throughout
+    from petsc_htp.multilevel.ranges import floating
     from petsc_htp.scenes import foreign
 
-    D, b = foreign.dmda(2, 64, 1e3, 0)
-    reason, its, relres, ksp, mat = solve(D, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=100)
+    opts = dict(htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=100)
+    D, bd = foreign.dmda(2, 64, 1e3, 0)
+    reason, its, relres, ksp, mat = solve(D, bd, **opts)
     setup = ksp.getPC().getPythonContext().setup
     assert reason > 0 and len(setup.hierarchy.levels) >= 2 and setup.range is None and setup.ranges.components is None
     ksp.destroy()
     mat.destroy()
-    floating = sp.block_diag([D, foreign.neumann(30, 1e3, 0)[0]]).tocsr()
-    floating.sort_indices()
-    for A, grounded in ((D, True), (floating, False)):
+    pair = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, 1.0]]))
+
+    def bare(A, b):                                                 # nothing attached
+        mat = _mat(A)
+        rhs, x = mat.createVecs()
+        rhs.getArray()[:] = b
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setOperators(mat, mat)
+        ksp.setType("cg")
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=1e-8, max_it=300)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(petsc_htp.HTPPC())
+        for key, value in opts.items():
+            PETSc.Options()[key] = value
+        try:
+            ksp.setFromOptions()
+            ksp.solve(rhs, x)
+        finally:
+            for key in opts:
+                del PETSc.Options()[key]
+        relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
+        return ksp.getConvergedReason(), relres, ksp.getPC().getPythonContext().setup.range, (ksp, mat, rhs, x)
+
+    for seed in (0, 1):
+        N, L = foreign.neumann(64, 1e6, seed)[0], foreign.lognormal(64, 1e6, seed)[0]
+        A = sp.block_diag([N, L]).tocsr()
+        A.sort_indices()
+        b = np.random.default_rng(seed).standard_normal(A.shape[0])
+        b[:N.shape[0]] -= b[:N.shape[0]].mean()                     # in the range
+        reason, relres, found, objs = bare(A, b)
+        assert reason > 0 and relres <= 1e-7 and found.k == 1, (reason, relres)
+        for obj in objs:
+            obj.destroy()
+    for A, expected in ((D, 0), (sp.block_diag([D, N]).tocsr(), 1), (sp.block_diag([D, pair]).tocsr(), None)):
+        A.sort_indices()
         mat = _mat(A)
         rowsum = np.asarray(A.sum(axis=1)).ravel()
         hierarchy = Hierarchy(mat, coarse_max=100)
-        assert len(hierarchy.levels) >= 2
-        assert grounded_throughout(hierarchy, np.abs(rowsum) > 1e-10 * A.diagonal(), Collective(mat.getComm())) \
-            == grounded
+        rows = floating(hierarchy, np.abs(rowsum) > 1e-10 * A.diagonal().max(), Collective(mat.getComm()))
+        assert len(hierarchy.levels) >= 2 and (rows is None if expected is None else rows.size == expected), rows
         hierarchy.destroy()
         mat.destroy()
+    A = sp.block_diag([D, pair]).tocsr()
+    A.sort_indices()
+    reason, relres, found, objs = bare(A, np.concatenate([bd, [1.0, -1.0]]))
+    assert reason > 0 and relres <= 1e-7 and found.k == 1, (reason, relres)
+    for obj in objs:
+        obj.destroy()

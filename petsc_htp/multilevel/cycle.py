@@ -58,10 +58,11 @@ def defaults(prefix, ranks, smoother="leaves", lu=True) -> dict:
     return out
 
 
-def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
+def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None):
     """A PCMG (set up) running V-cycles on ``hierarchy`` under the options ``prefix`` with ``smoother`` (one of
-    :data:`SMOOTHERS`; ``leaves`` needs the hierarchy's leaf blocks); returns (the PC, the Richardson scale of each
-    smoothed level, finest first)."""
+    :data:`SMOOTHERS`; ``leaves`` needs the hierarchy's leaf blocks), the coarsest operator's rows ``ground``
+    grounded in its banded factor (:func:`banded`); returns (the PC, the Richardson scale of each smoothed level,
+    finest first)."""
     ops = hierarchy.operators()
     comm = ops[0].getComm()
     pc = PETSc.PC().create(comm)
@@ -74,7 +75,7 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
         pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
         own = any(name.startswith((prefix + "mg_coarse_pc_", prefix + "mg_coarse_redundant_"))
                   for name in PETSc.Options().getAll())        # the user's coarse solver
-        made = None if own or count < 2 else banded(ops[-1])
+        made = None if own or count < 2 else banded(ops[-1], ground)
         with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None)):
             pc.setFromOptions()
             for level in range(1, count):
@@ -109,8 +110,9 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves"):
     return pc, scales
 
 
-def banded(A):
-    """The banded Cholesky factor of the coarsest operator ``A`` (LAPACK's, of its rows gathered on every rank) as
+def banded(A, ground=None):
+    """The banded Cholesky factor of the coarsest operator ``A`` (LAPACK's, of its rows gathered on every rank; its rows
+    ``ground`` grounded, :meth:`..twolevel.band.Band.factor`) as
     (:class:`..twolevel.band.Band`, rows grounded) for :class:`..twolevel.band.BandPC`, the coarse solve where there
     are levels and the user set no ``mg_coarse_pc_`` option (nor PCREDUNDANT's): where its band in its own or reverse
     Cuthill-McKee order holds at most :data:`COARSE_BAND` values and no rank's factor has a negative pivot; else None,
@@ -133,7 +135,7 @@ def banded(A):
         if rows.shape[0] * (order[3] + 1) > COARSE_BAND:
             return None
         band = Band(rows, order)
-        info, grounded = band.factor(rows.data)
+        info, grounded = band.factor(rows.data, ground)
     ok = Collective(A.getComm()).min_array(np.array([info == 0], dtype=np.int64))[0]   # every rank alike
     return (band, grounded) if ok else None          # a negative pivot (a shifted problem's): the LU
 

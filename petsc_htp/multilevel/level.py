@@ -26,9 +26,11 @@ JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound
 
 class Level:
     """A level's operator ``A`` (PETSc), its leaves, :attr:`column` (the coarse column of each of this rank's rows, on
-    this rank, -1 for none: :func:`leaf_columns`), the leaf-block matrix ``B`` (where ``blocks``: the leaf solves'
-    smoother; else None), the coarse space ``W`` (A's rows by the next level's columns) and :attr:`below`, the next
-    level's operator W^T A W (a new Mat, the caller's); ``rows``: this rank's rows of ``A`` where already read."""
+    this rank, -1 for none: :func:`leaf_columns`), :attr:`joined` (on several ranks, whether some rank's diagonal block
+    leaves a row coupled to other ranks only: such rows share leaves, which may then join two components of ``A``),
+    the leaf-block matrix ``B`` (where ``blocks``: the leaf solves' smoother; else None), the coarse space ``W`` (A's
+    rows by the next level's columns) and :attr:`below`, the next level's operator W^T A W (a new Mat, the caller's);
+    ``rows``: this rank's rows of ``A`` where already read."""
 
     def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True, rows=None):
         self.A, self.jacobi = A, jacobi
@@ -36,7 +38,12 @@ class Level:
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
             self.leaf = leaves(A, rows) if leaf is None else leaf
-            self.column, self.k = leaf_columns(self.leaf, decoupled_rows(rows, start))
+            lone = decoupled_rows(rows, start)
+            self.column, self.k = leaf_columns(self.leaf, lone)
+            self.joined = False
+            if coll.size > 1:
+                with diagonal_block(A, rows) as block:
+                    self.joined = coll.any(np.any(decoupled_rows(block) & ~lone))
             column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
             self.halo = galerkin.Halo(rows, start)

@@ -21,29 +21,28 @@ class Ranges:
     def __init__(self, mat):
         self.mat, self.components = mat, None
 
-    def check(self, rows, hierarchy=None, perm=None):
-        """The :class:`~..twolevel.consistency.RangeCheck` of the connected components of the matrix (this rank's
-        ``rows``, its values now) whose row sums vanish, where no null space is attached and some do; else None
-        (collective). Where the ``hierarchy`` built on it (its rows in the order ``perm``, where given) shows every
-        component grounded (:func:`grounded_throughout`), none is null: no components are looked for (the 2-D DMDA's
-        at 262 144 rows took 11 ms on one rank and 14 on two, at 1M 49 and 55, against 0.7, 1.6, 2.8 and 4.4 through the
-        hierarchy: results/renew-20261128/ranges.txt)."""
+    def check(self, rows, hierarchy, perm=None) -> tuple:
+        """(the :class:`~..twolevel.consistency.RangeCheck` of the connected components of the matrix whose row sums
+        vanish, where no null space is attached and some do, else None | the coarsest operator's rows to ground,
+        :func:`floating`'s) for this rank's ``rows`` (their values now) and the ``hierarchy`` built on the matrix (its
+        rows in the order ``perm``, where given; collective). Where the hierarchy shows no component floating, none is
+        null: no components are looked for (the 2-D DMDA's at 262 144 rows took 11 ms on one rank and 14 on two, at
+        1M 49 and 55, against 0.7, 1.6, 2.8 and 4.4 through the hierarchy: results/renew-20261128/ranges.txt)."""
         mat = self.mat
-        if mat.getNullSpace().handle:
-            return None
         coll = Collective(mat.getComm())
         diag, rowsum = rows.diagonal(k=mat.getOwnershipRange()[0]), row_sums(rows.indptr, rows.data)
-        vanishing = nullspace.vanishing(rowsum, diag)
-        if not coll.any(vanishing.any()):
-            return None
-        if hierarchy is not None and grounded_throughout(hierarchy, ~(vanishing if perm is None else vanishing[perm]),
-                                                         coll):
-            return None
+        top = coll.max_array(np.array([np.abs(diag).max(initial=0.0)]))[0]       # the null test's tolerance
+        grounded = np.abs(rowsum) > nullspace.NULL_TOL * top
+        if not coll.any(not grounded.all()):
+            return None, np.zeros(0, dtype=np.int64)
+        lifted = floating(hierarchy, grounded if perm is None else grounded[perm], coll)
+        if mat.getNullSpace().handle or (lifted is not None and lifted.size == 0):
+            return None, lifted
         if self.components is None:
             self.components = components(mat, rows, coll)
         n_comp, comp = self.components
         null = nullspace.null_by_rowsums(rowsum, diag, comp, n_comp, coll.max_array if coll.size > 1 else None)
-        return RangeCheck(rows, comp, null, coll) if null.any() else None
+        return (RangeCheck(rows, comp, null, coll) if null.any() else None), lifted
 
 
 def components(mat, rows, coll) -> tuple:
@@ -65,26 +64,32 @@ def components(mat, rows, coll) -> tuple:
     return n_comp, comp[row_comp]
 
 
-def grounded_throughout(hierarchy, grounded, coll) -> bool:
-    """Whether every connected component of the :class:`~.hierarchy.Hierarchy`'s coarsest operator holds a coarse row
-    made from a grounded one (``grounded``: this rank's rows of the finest operator whose row sums do not vanish; each
-    level's leaves lift them), so that no component of the finest operator is null: a null component's leaves make
-    coarse rows that couple to no other (its smoothed coarse vectors stay in it), all ungrounded, down to the coarsest.
-    Where the products dropped entries that cancel, a component may split: the answer is then False, and the caller
-    looks at the finest operator itself. False without levels (collective: the coarsest gathered on every rank)."""
+def floating(hierarchy, grounded, coll):
+    """The last row (in its numbering) of each connected component of the :class:`~.hierarchy.Hierarchy`'s coarsest
+    operator that holds no coarse row lifted from a grounded one (``grounded``: this rank's rows of the finest operator
+    whose row sums do not vanish; each level's leaves lift them), ascending. A null component of the finest operator
+    makes such a component: its leaves make coarse rows that couple to no other (its smoothed coarse vectors stay in
+    it), all ungrounded, down to the coarsest, whose factor they leave singular; with none, no component is null.
+    Products that drop entries that cancel may split a component: a part without a grounded row is then among them.
+    None where the hierarchy cannot tell: no levels, an ungrounded row left without a coarse column (a null component
+    shrunk to a row that couples to nothing), or rows that may share a leaf across components (:attr:`.level.Level.joined`;
+    collective: the coarsest gathered on every rank)."""
     from ..petscmat import gathered_rows, local_rows
 
     if not hierarchy.levels:
-        return False
+        return None
     for level in hierarchy.levels:
+        if level.joined or coll.any(np.any(~grounded & (level.column < 0))):
+            return None
         lifted = np.zeros(level.k, dtype=bool)
         lifted[level.column[grounded & (level.column >= 0)]] = True
         grounded = lifted
-    coarsest = hierarchy.coarsest
-    with local_rows(coarsest) as mine:
+    with local_rows(hierarchy.coarsest) as mine:
         rows = mine if coll.size == 1 else gathered_rows(mine, coll.mpi)
         if coll.size > 1:
             grounded = np.concatenate(coll.mpi.allgather(grounded))
         count, label = nullspace.graph_components(sp.csr_matrix((rows.data, rows.indices, rows.indptr),
                                                                 shape=(rows.shape[0],) * 2))
-    return bool(np.all(np.bincount(label[grounded], minlength=count) > 0))
+    last = np.full(count, -1, dtype=np.int64)
+    np.maximum.at(last, label, np.arange(label.size))
+    return last[np.bincount(label[grounded], minlength=count) == 0]

@@ -55,7 +55,7 @@ class MultilevelPC:
                              f"{', '.join(cycle.SMOOTHERS)}")
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
-        self.renew, self.penalty, self.ranges = False, None, Ranges(mat)
+        self.renew, self.ranges = False, Ranges(mat)
         self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
@@ -68,7 +68,8 @@ class MultilevelPC:
         its own order: 2 908 against 3 180). New values of the pattern keep the finest level's leaves and make the
         coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them on some rank
         (:meth:`moved`) or a solve took more than :data:`RENEW` times the iterations of the first on them: then the
-        hierarchy is built anew, the analysis (the whole-matrix choice, the order, the null components) kept."""
+        hierarchy is built anew (its leaves' order too, where reordered), the analysis (the whole-matrix choice, whether
+        to reorder, the null components) kept."""
         self.times = {}
         renew, self.renew = Collective(self.mat.getComm()).any(self.renew), False
         grew = bool(self.first_its and self.its and self.its > RENEW * self.first_its)
@@ -82,11 +83,9 @@ class MultilevelPC:
                 if self.P is not None:
                     self.mat.createSubMatrix(self.order, self.order, submat=self.P)
                 self.hierarchy.refresh(rows if self.P is None else None)
-            with phase("HTPCoarseFactor", self.times, "cycle"):
-                self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
+            self._cycle(rows)
             self.age += 1
             self.refresh_ms = sum(self.times.values())
-            self.range = self.ranges.check(rows, self.hierarchy, self.perm)
             return
         self._free()
         self.age, self.first_its, self.its, self.leaf_its = 0, None, None, []
@@ -103,10 +102,16 @@ class MultilevelPC:
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
                                        blocks=self.smoother == "leaves", rows=rows if self.P is None else None)
-        with phase("HTPCoarseFactor", self.times, "cycle"):
-            self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother)
+        self._cycle(rows)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
-        self.range = self.ranges.check(rows, self.hierarchy, self.perm)
+
+    def _cycle(self, rows):
+        """The range check (:mod:`.ranges`) and the V-cycle of the hierarchy, its coarsest factor grounded in each
+        component that stands for a null one (a floating Neumann square of contrast 1e6 beside a Dirichlet one, whose
+        null pivot rounding hid: CG had stopped with DIVERGED_INDEFINITE_MAT)."""
+        self.range, ground = self.ranges.check(rows, self.hierarchy, self.perm)
+        with phase("HTPCoarseFactor", self.times, "cycle"):
+            self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother, ground)
 
     def moved(self, rows, penalty=None) -> bool:
         """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from
@@ -116,15 +121,14 @@ class MultilevelPC:
         leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed, which
         inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept as at
         commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
-        extra iterations old leaves took, at ms per iteration; else :attr:`penalty`, that cost the last time values
-        moved, or ``penalty``, an earlier analysis's) does keeping them win when it is the smaller
+        extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time values moved,
+        which the variant keeps: :meth:`..variants.TwoLevel.moved`) does keeping them win when it is the smaller
         (:func:`..twolevel.spacereuse.stale_cost`). This rank's alone: :meth:`numeric` or's it over the ranks."""
+        self.renew = False
         if self.weak is None or not self.weak.moved(rows):
             return False
         cost = stale_cost(self.leaf_its, self.ms_per_it)
-        if cost is not None:
-            self.penalty = cost
-        cost = cost if cost is not None else self.penalty if self.penalty is not None else penalty
+        cost = penalty if cost is None else cost
         self.renew = cost is None or cost > self.build_ms - self.refresh_ms
         return False
 

@@ -64,12 +64,14 @@ class Band:
         return (rows.shape[0] == self.shape[1] and np.array_equal(rows.indptr, self.indptr)
                 and np.array_equal(rows.indices, self.indices))
 
-    def factor(self, data) -> tuple:
-        """Factor the values ``data`` (in the pattern's CSR order), grounding each null pivot: a pivot below
+    def factor(self, data, ground=None) -> tuple:
+        """Factor the values ``data`` (in the pattern's CSR order) with the rows ``ground`` (the caller's, where known:
+        one of each null component; a null pivot rounding hides at high contrast: 5e-7 of its diagonal entry at 1e6)
+        grounded, and each null pivot: a pivot below
         :data:`NULL_PIVOT` of its row's diagonal entry (a singular matrix's, where no component was grounded before:
         the rounding leaves it either side of zero) has that diagonal entry raised by its own magnitude, and the
-        values are factored again; where every row sum vanishes the last row is grounded first (a connected graph's
-        one null pivot: no second factorisation), and after :data:`EVERY_AFTER` more the last row of every component
+        values are factored again; where at most one row is given and every row sum vanishes the last row is grounded
+        first instead (a connected graph's one null pivot: no second factorisation), and after :data:`EVERY_AFTER` more the last row of every component
         of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
         negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
         factorisations; else 0 | the rows grounded, in the original order)."""
@@ -77,8 +79,13 @@ class Band:
         diag = np.zeros(self.shape[1])                          # |a_ii| in the band's order
         diag[self.on_col] = np.abs(values[self.on])
         grounded = np.zeros(0, dtype=np.int64)
-        if self.shape[1] and vanishing(row_sums(self.indptr, data), diag).all():
+        given = 0 if ground is None else len(ground)
+        if self.shape[1] and given <= 1 and vanishing(row_sums(self.indptr, data), diag).all():
             grounded = np.array([self.shape[1] - 1])
+        elif given:
+            inverse = np.empty(self.shape[1], dtype=np.int64)
+            inverse[self.perm] = np.arange(self.shape[1])
+            grounded = np.unique(inverse[ground])
         for attempt in range(GROUND_MAX):
             info, null = self._attempt(values, diag, grounded)
             if info > 0 or null.size == 0:
