@@ -26,8 +26,8 @@ class Ranges:
         vanish, where no null space is attached and some do, else None | the coarsest operator's rows to ground,
         :func:`floating`'s) for this rank's ``rows`` (their values now) and the ``hierarchy`` built on the matrix (its
         rows in the order ``perm``, where given; collective). Where the hierarchy shows no component floating, none is
-        null: no components are looked for (the 2-D DMDA's at 262 144 rows took 11 ms on one rank and 14 on two, at
-        1M 49 and 55, against 0.7, 1.6, 2.8 and 4.4 through the hierarchy: results/renew-20261128/ranges.txt)."""
+        null: no components are looked for (the 2-D DMDA's at 262 144 rows took 8.5 ms on one rank and 11 on two, at
+        1M 43 and 34, against 0.9, 1.7, 5.0 and 3.1 through the hierarchy: results/renew-20261128/ranges.txt)."""
         mat = self.mat
         coll = Collective(mat.getComm())
         diag, rowsum = rows.diagonal(k=mat.getOwnershipRange()[0]), row_sums(rows.indptr, rows.data)
