@@ -342,7 +342,6 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
     nothing, leaves the hierarchy unable to tell (None), and the components of A find it."""
     import scipy.sparse as sp
 
-    import petsc_htp
     from petsc_htp.collective import Collective
     from petsc_htp.multilevel.ranges import floating
     from petsc_htp.scenes import foreign
@@ -356,38 +355,16 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
     mat.destroy()
     pair = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, 1.0]]))
 
-    def bare(A, b):                                                 # nothing attached
-        mat = _mat(A)
-        rhs, x = mat.createVecs()
-        rhs.getArray()[:] = b
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-        ksp.setOperators(mat, mat)
-        ksp.setType("cg")
-        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        ksp.setTolerances(rtol=1e-8, max_it=300)
-        ksp.getPC().setType("python")
-        ksp.getPC().setPythonContext(petsc_htp.HTPPC())
-        for key, value in opts.items():
-            PETSc.Options()[key] = value
-        try:
-            ksp.setFromOptions()
-            ksp.solve(rhs, x)
-        finally:
-            for key in opts:
-                del PETSc.Options()[key]
-        relres = np.linalg.norm(b - A @ x.getArray()) / np.linalg.norm(b)
-        return ksp.getConvergedReason(), relres, ksp.getPC().getPythonContext().setup.range, (ksp, mat, rhs, x)
-
     for seed in (0, 1):
         N, L = foreign.neumann(64, 1e6, seed)[0], foreign.lognormal(64, 1e6, seed)[0]
         A = sp.block_diag([N, L]).tocsr()
         A.sort_indices()
         b = np.random.default_rng(seed).standard_normal(A.shape[0])
         b[:N.shape[0]] -= b[:N.shape[0]].mean()                     # in the range
-        reason, relres, found, objs = bare(A, b)
-        assert reason > 0 and relres <= 1e-7 and found.k == 1, (reason, relres)
-        for obj in objs:
-            obj.destroy()
+        reason, its, relres, ksp, mat = solve(A, b, mat=_mat(A), **opts)            # nothing attached
+        assert reason > 0 and relres <= 1e-7 and ksp.getPC().getPythonContext().setup.range.k == 1, (reason, relres)
+        ksp.destroy()
+        mat.destroy()
     for A, expected in ((D, 0), (sp.block_diag([D, N]).tocsr(), 1), (sp.block_diag([D, pair]).tocsr(), None)):
         A.sort_indices()
         mat = _mat(A)
@@ -399,7 +376,7 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
         mat.destroy()
     A = sp.block_diag([D, pair]).tocsr()
     A.sort_indices()
-    reason, relres, found, objs = bare(A, np.concatenate([bd, [1.0, -1.0]]))
-    assert reason > 0 and relres <= 1e-7 and found.k == 1, (reason, relres)
-    for obj in objs:
-        obj.destroy()
+    reason, its, relres, ksp, mat = solve(A, np.concatenate([bd, [1.0, -1.0]]), mat=_mat(A), **opts)
+    assert reason > 0 and relres <= 1e-7 and ksp.getPC().getPythonContext().setup.range.k == 1, (reason, relres)
+    ksp.destroy()
+    mat.destroy()
