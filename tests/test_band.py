@@ -172,6 +172,27 @@ def test_many_null_components_are_grounded_at_once():
     assert "null pivot(s) grounded" in lines(ksp)
 
 
+def test_rows_given_to_ground_are_grounded_in_the_band_order_of_a_shuffled_matrix():
+    """Two Neumann squares in one matrix, its rows shuffled (reverse Cuthill-McKee then reorders them): the rows given,
+    one of each square (in the matrix's own numbering), are those grounded, in one factorisation, and the factor then
+    solves a consistent system exactly."""
+    N = foreign.neumann(20, 1e3, 0)[0]
+    A = sp.block_diag([N, 2.0 * N]).tocsr()
+    shuffle = np.random.default_rng(0).permutation(A.shape[0])
+    A = sp.csr_matrix(A[shuffle][:, shuffle])
+    A.sort_indices()
+    band = Band(A)
+    assert not band.own
+    first = np.flatnonzero(shuffle < N.shape[0])                    # the rows of the first square, now
+    ground = np.array([first[-1], np.flatnonzero(shuffle >= N.shape[0])[0]])
+    info, grounded = band.factor(A.data, ground)
+    assert info == 0 and np.array_equal(np.sort(grounded), np.sort(ground))
+    x = np.random.default_rng(1).standard_normal(A.shape[0])
+    b, y = A @ x, np.empty(A.shape[0])
+    band.solve(b, y)
+    assert np.linalg.norm(A @ y - b) <= 1e-8 * np.linalg.norm(b)
+
+
 def test_the_view_names_the_pc_that_runs_and_serves_a_leaf_pc_that_is_no_factor():
     """-htp_leaf_pc_type icc on a matrix chosen for the band: -ksp_view names PETSc's ICC, which runs (its view had
     said 'one banded Cholesky factor (one iteration)'); -htp_leaf_pc_type jacobi under the two-level method: the view

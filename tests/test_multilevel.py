@@ -339,7 +339,7 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
     square (a null component, nothing attached) one coarsest component holds none: its last row is grounded in the
     coarsest factor (at contrast 1e6 rounding hid its null pivot, and CG stopped with DIVERGED_INDEFINITE_MAT), and the
     components of A are found, the floating one null; a null pair of rows, which shrinks to a coarse row coupled to
-    nothing, leaves the hierarchy unable to tell (None), and the components of A find it."""
+    nothing, leaves the hierarchy unable to tell (not complete), and the components of A find it."""
     import scipy.sparse as sp
 
     from petsc_htp.collective import Collective
@@ -370,8 +370,8 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
         mat = _mat(A)
         rowsum = np.asarray(A.sum(axis=1)).ravel()
         hierarchy = Hierarchy(mat, coarse_max=100)
-        rows = floating(hierarchy, np.abs(rowsum) > 1e-10 * A.diagonal().max(), Collective(mat.getComm()))
-        assert len(hierarchy.levels) >= 2 and (rows is None if expected is None else rows.size == expected), rows
+        rows, complete = floating(hierarchy, np.abs(rowsum) > 1e-10 * A.diagonal().max(), Collective(mat.getComm()))
+        assert len(hierarchy.levels) >= 2 and complete == (expected is not None) and rows.size == (expected or 0)
         hierarchy.destroy()
         mat.destroy()
     A = sp.block_diag([D, pair]).tocsr()

@@ -25,8 +25,8 @@ class Ranges:
         """(the :class:`~..twolevel.consistency.RangeCheck` of the connected components of the matrix whose row sums
         vanish, where no null space is attached and some do, else None | the coarsest operator's rows to ground,
         :func:`floating`'s) for this rank's ``rows`` (their values now) and the ``hierarchy`` built on the matrix (its
-        rows in the order ``perm``, where given; collective). Where the hierarchy shows no component floating, none is
-        null: no components are looked for (the 2-D DMDA's at 262 144 rows took 8.5 ms on one rank and 11 on two, at
+        rows in the order ``perm``, where given; collective). Where the hierarchy shows no component floating and can
+        tell, none is null: no components are looked for (the 2-D DMDA's at 262 144 rows took 8.5 ms on one rank and 11 on two, at
         1M 43 and 34, against 0.9, 1.7, 5.0 and 3.1 through the hierarchy: results/renew-20261128/ranges.txt)."""
         mat = self.mat
         coll = Collective(mat.getComm())
@@ -35,8 +35,8 @@ class Ranges:
         grounded = np.abs(rowsum) > nullspace.NULL_TOL * top
         if not coll.any(not grounded.all()):
             return None, np.zeros(0, dtype=np.int64)
-        lifted = floating(hierarchy, grounded if perm is None else grounded[perm], coll)
-        if mat.getNullSpace().handle or (lifted is not None and lifted.size == 0):
+        lifted, complete = floating(hierarchy, grounded if perm is None else grounded[perm], coll)
+        if mat.getNullSpace().handle or (complete and lifted.size == 0):
             return None, lifted
         if self.components is None:
             self.components = components(mat, rows, coll)
@@ -64,23 +64,25 @@ def components(mat, rows, coll) -> tuple:
     return n_comp, comp[row_comp]
 
 
-def floating(hierarchy, grounded, coll):
-    """The last row (in its numbering) of each connected component of the :class:`~.hierarchy.Hierarchy`'s coarsest
-    operator that holds no coarse row lifted from a grounded one (``grounded``: this rank's rows of the finest operator
-    whose row sums do not vanish; each level's leaves lift them), ascending. A null component of the finest operator
-    makes such a component: its leaves make coarse rows that couple to no other (its smoothed coarse vectors stay in
-    it), all ungrounded, down to the coarsest, whose factor they leave singular; with none, no component is null.
-    Products that drop entries that cancel may split a component: a part without a grounded row is then among them.
-    None where the hierarchy cannot tell: no levels, an ungrounded row left without a coarse column (a null component
-    shrunk to a row that couples to nothing), or rows that may share a leaf across components (:attr:`.level.Level.joined`;
-    collective: the coarsest gathered on every rank)."""
+def floating(hierarchy, grounded, coll) -> tuple:
+    """(the last row, in its numbering, of each connected component of the :class:`~.hierarchy.Hierarchy`'s coarsest
+    operator that holds no coarse row lifted from a grounded one, sorted | whether they are all that stand for null
+    components) for ``grounded``, this rank's rows of the finest operator whose row sums do not vanish (each level's
+    leaves lift them); (None, False) without levels. A null component of the finest operator makes such a component:
+    its leaves make coarse rows that couple to no other (its smoothed coarse vectors stay in it), all ungrounded, down
+    to the coarsest, whose factor they leave singular. Products that drop entries that cancel may split a component: a
+    part without a grounded row is then among them. Some may be missing where an ungrounded row is left without a
+    coarse column (a null component shrunk to a row that couples to nothing) or rows may share a leaf across components
+    (:attr:`.level.Level.joined`): those found are still such components (collective: the coarsest gathered on every
+    rank)."""
     from ..petscmat import gathered_rows, local_rows
 
     if not hierarchy.levels:
-        return None
+        return None, False
+    complete = True
     for level in hierarchy.levels:
-        if level.joined or coll.any(np.any(~grounded & (level.column < 0))):
-            return None
+        lost = coll.any(np.any(~grounded & (level.column < 0)))
+        complete = complete and not level.joined and not lost
         lifted = np.zeros(level.k, dtype=bool)
         lifted[level.column[grounded & (level.column >= 0)]] = True
         grounded = lifted
@@ -92,4 +94,4 @@ def floating(hierarchy, grounded, coll):
                                                                 shape=(rows.shape[0],) * 2))
     last = np.full(count, -1, dtype=np.int64)
     np.maximum.at(last, label, np.arange(label.size))
-    return last[np.bincount(label[grounded], minlength=count) == 0]
+    return np.sort(last[np.bincount(label[grounded], minlength=count) == 0]), complete

@@ -66,13 +66,13 @@ class Band:
 
     def factor(self, data, ground=None) -> tuple:
         """Factor the values ``data`` (in the pattern's CSR order) with the rows ``ground`` (the caller's, where known:
-        one of each null component; a null pivot rounding hides at high contrast: 5e-7 of its diagonal entry at 1e6)
-        grounded, and each null pivot: a pivot below
-        :data:`NULL_PIVOT` of its row's diagonal entry (a singular matrix's, where no component was grounded before:
-        the rounding leaves it either side of zero) has that diagonal entry raised by its own magnitude, and the
-        values are factored again; where at most one row is given and every row sum vanishes the last row is grounded
-        first instead (a connected graph's one null pivot: no second factorisation), and after :data:`EVERY_AFTER` more the last row of every component
-        of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
+        one of each null component, whose null pivot rounding hides at high contrast: 5e-7 of its diagonal entry at
+        1e6) grounded, and each null pivot: a pivot below :data:`NULL_PIVOT` of its row's diagonal entry (a singular
+        matrix's, where no component was grounded before: the rounding leaves it either side of zero) has that
+        diagonal entry raised by its own magnitude, and the values are factored again; where at most one row is given
+        and every row sum vanishes, the last row in the band's order is grounded first instead (a connected graph's
+        one null pivot, as before rows were given: the Neumann square's iterations stay), and after
+        :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
         negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
         factorisations; else 0 | the rows grounded, in the original order)."""
         values = data[self.lower]
