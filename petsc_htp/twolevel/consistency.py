@@ -61,6 +61,14 @@ class RangeCheck:
         scale = absolute[self.rows]
         self.scale = float(np.sqrt(coll.sum_array(np.array([scale @ scale]))[0]))   # ||(|A| z)|| for z below
 
+    def project(self, vec):
+        """``vec`` (a PETSc Vec of the operator's rows) less its mean on each null component, in place; returned
+        (collective)."""
+        values = vec.array
+        sums = self.coll.sum_array(np.bincount(self.comp, values[self.rows], minlength=self.k).astype(np.float64))
+        values[self.rows] -= (sums / self.size)[self.comp]
+        return vec
+
     def _annihilated(self, amat) -> bool:
         """Whether the solved operator ``amat`` annihilates the null constants too, z their sum: ||amat z|| at most
         1e-10 ||(|A| z)|| (a Pmat's components, but the Amat A + 0.01 I is regular; new values since the setup);
