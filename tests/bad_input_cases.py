@@ -502,6 +502,14 @@ def case_singular_pmat():
                    {"htp_direct_max": 0}, pmat=dist(A))[0]
 
 
+def case_singular_pmat_multilevel():
+    """The same under the multilevel V-cycles, whose input and output are taken off the Pmat's null constants only
+    where the solved Amat annihilates them too (else M was singular and CG never reached the constants' part)."""
+    A = _neumann_square()
+    return outcome(dist(A + 0.01 * sp.identity(900)), np.random.default_rng(1).standard_normal(900),
+                   {"htp_variant": "multilevel", "htp_direct_max": 0, "htp_ml_coarse_max": 100}, pmat=dist(A))[0]
+
+
 def case_second_set_from_options():
     """KSPSetFromOptions again between two solves (petsc4py makes a new python context, which PETSc, holding the PC
     as set up, never set up: 'HTPPC.apply called before setUp')."""

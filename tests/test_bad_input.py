@@ -85,6 +85,7 @@ EXPECTED = {
                             r"entries are split over the ranks unlike the matrix's rows \(2 local part\(s\) differ\); "
                             r"make them with Mat.createVecRight\(\)"},
     "singular_pmat": CONVERGED,
+    "singular_pmat_multilevel": CONVERGED,
     "second_set_from_options": CONVERGED,
     "jumps3d": CONVERGED,
     "loose_coarse_cycles": CONVERGED,

@@ -57,13 +57,15 @@ class RangeCheck:
         self.rows = np.flatnonzero(null[comp_of_row])
         self.comp = number[comp_of_row[self.rows]]
         self.k, self.coll, self.seen = int(null.sum()), coll, {}
+        self.active = True          # whether the operator solved annihilates the constants too (:meth:`check`)
         self.size = coll.sum_array(np.bincount(self.comp, minlength=self.k).astype(np.float64))
         scale = absolute[self.rows]
         self.scale = float(np.sqrt(coll.sum_array(np.array([scale @ scale]))[0]))   # ||(|A| z)|| for z below
 
     def project(self, vec):
         """``vec`` (a PETSc Vec of the operator's rows) less its mean on each null component, in place; returned
-        (collective)."""
+        (collective). For a solve whose operator annihilates the constants (:attr:`active`): with a regular Amat
+        beside the singular Pmat the constants' part is the solution's own."""
         values = vec.array
         sums = self.coll.sum_array(np.bincount(self.comp, values[self.rows], minlength=self.k).astype(np.float64))
         values[self.rows] -= (sums / self.size)[self.comp]
@@ -92,9 +94,10 @@ class RangeCheck:
         attached (the KSP removes that part) or does not annihilate the constants (a regular Amat, the Pmat
         singular)."""
         amat = ksp.getOperators()[0]
-        if (not self.k or ksp.getNormType() == PETSc.KSP.NormType.NONE
+        self.active = bool(self.k) and self._annihilated(amat)     # :meth:`project` serves this solve (collective)
+        if (not self.active or ksp.getNormType() == PETSc.KSP.NormType.NONE
                 or (ksp.getOptionsPrefix() or "").endswith(ESTIMATE) or amat.getNullSpace().handle
-                or amat.getTransposeNullSpace().handle or not self._annihilated(amat)):
+                or amat.getTransposeNullSpace().handle):
             return
         sums = np.bincount(self.comp, b.array_r[self.rows], minlength=self.k).astype(np.float64)   # float on every
         sums = self.coll.sum_array(sums)                                        # rank, also one without such rows
