@@ -1,9 +1,9 @@
 """Row orderings for sparse operators: Morton, reverse Cuthill-McKee, natural."""
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .morton import morton_permutation, quantized_morton_codes
+from .twolevel.cuthill import reverse_cuthill_mckee
 
 METHODS = ("auto", "morton", "rcm", "natural")
 
@@ -33,7 +33,7 @@ def rcm_permutation(A):
         ``p`` such that ``A[p][:, p]`` has reduced bandwidth.
     """
     A = check_square(A)
-    return reverse_cuthill_mckee(A, symmetric_mode=True).astype(np.int64)
+    return reverse_cuthill_mckee(A)
 
 
 def is_morton_sorted(coords):

@@ -10,7 +10,6 @@ import math
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
-from scipy.sparse.csgraph import connected_components
 
 from .collective import Collective
 from .twolevel.nullspace import null_regions
@@ -394,6 +393,8 @@ def frame_mat(frame, comm=None):
     mat, start, end = preallocated_aij(frame.A, comm)
     mat.setValuesCSR(*local_csr(frame.A, start, end))
     mat.assemble()
+    from scipy.sparse.csgraph import connected_components     # not at import: it loads scipy.sparse.linalg
+
     regions = connected_components(frame.A, directed=False)[1]
     null = null_regions(frame.A, regions)
     if null.any():

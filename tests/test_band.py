@@ -193,6 +193,27 @@ def test_rows_given_to_ground_are_grounded_in_the_band_order_of_a_shuffled_matri
     assert np.linalg.norm(A @ y - b) <= 1e-8 * np.linalg.norm(b)
 
 
+def test_the_reverse_cuthill_mckee_order_is_scipys():
+    """twolevel/cuthill.py's order (PyAMG's compiled search, no scipy.sparse.csgraph) is scipy's, permutation for
+    permutation: a DMDA matrix in its own and a shuffled numbering, a Neumann square beside a log-normal one, rows
+    alone beside a grid, 200 small components, an empty pattern and, through scipy's own, an asymmetric one."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee as scipy_rcm
+
+    from petsc_htp.twolevel.cuthill import reverse_cuthill_mckee
+
+    D = foreign.dmda(2, 64, 1e3, 0)[0]
+    shuffle = np.random.default_rng(0).permutation(D.shape[0])
+    pair = sp.block_diag([foreign.neumann(20, 1e3, 0)[0], foreign.lognormal(30, 1e3, 0)[0]])
+    cases = [D, D[shuffle][:, shuffle], pair,
+             sp.block_diag([sp.identity(50), D, sp.identity(7)]),
+             sp.block_diag([foreign.neumann(5, 1e3, k)[0] for k in range(200)]), sp.csr_matrix((3, 3)),
+             sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0]]))]
+    for A in cases:
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        assert np.array_equal(reverse_cuthill_mckee(A), scipy_rcm(A, symmetric_mode=True)), A.shape
+
+
 def test_the_view_names_the_pc_that_runs_and_serves_a_leaf_pc_that_is_no_factor():
     """-htp_leaf_pc_type icc on a matrix chosen for the band: -ksp_view names PETSc's ICC, which runs (its view had
     said 'one banded Cholesky factor (one iteration)'); -htp_leaf_pc_type jacobi under the two-level method: the view

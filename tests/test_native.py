@@ -63,6 +63,25 @@ def test_import_leaves_torch_out():
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 
 
+def test_a_first_multilevel_solve_leaves_scipy_csgraph_out():
+    """HTPPC's import and a first multilevel solve (the coarsest level's band in reverse Cuthill-McKee order:
+    twolevel/cuthill.py) load no scipy.sparse.csgraph, whose import pulls in scipy.sparse.linalg (about 90 ms of a
+    fresh process's import of petsc_htp.pc)."""
+    code = ("import sys, petsc4py; petsc4py.init(); from petsc4py import PETSc\n"
+            "import petsc_htp.pc\n"
+            "assert 'scipy.sparse.csgraph' not in sys.modules\n"
+            "from petsc_htp.scenes import foreign\n"
+            "A, b = foreign.dmda(2, 200, 1e3, 0)\n"
+            "M = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=PETSc.COMM_SELF)\n"
+            "rhs, x = M.createVecs(); rhs.getArray()[:] = b\n"
+            "ksp = PETSc.KSP().create(PETSc.COMM_SELF); ksp.setOperators(M, M); ksp.setType('cg')\n"
+            "ksp.getPC().setType('python'); ksp.getPC().setPythonContext(petsc_htp.pc.HTPPC())\n"
+            "ksp.setTolerances(rtol=1e-8); ksp.solve(rhs, x)\n"
+            "assert ksp.getConvergedReason() > 0 and 'multilevel' in ksp.getPC().getPythonContext().setup.title\n"
+            "sys.exit('scipy.sparse.csgraph' in sys.modules)\n")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
 def test_aggregation_loads_pyamg_kernels_without_pyamg_package():
     """The leaves' PyAMG kernels load without ``pyamg/__init__`` (its gallery and solvers: about 40 ms of a first
     setup); PyAMG imported afterwards finds the same modules and works."""

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .csr import row_sums
+from .cuthill import reverse_cuthill_mckee
 from .nullspace import graph_components, vanishing
 
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
@@ -33,7 +33,7 @@ def ordering(rows, reorder=True) -> tuple:
     natural = int(np.abs(qi - qj).max()) if rows.nnz else 0
     if natural <= NATURAL_WIDTH or not reorder:
         return np.arange(n), qi, qj, natural
-    perm = reverse_cuthill_mckee(rows, symmetric_mode=True)
+    perm = reverse_cuthill_mckee(rows)
     inverse = np.empty(n, dtype=perm.dtype)
     inverse[perm] = np.arange(n, dtype=perm.dtype)
     ri, rj = inverse[qi], inverse[qj]

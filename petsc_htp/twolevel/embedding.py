@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
 
 MAX_SLOPE = 1.25    # log-log growth of BFS level sizes from a corner above which the graph is not 2-D-like
 
@@ -30,6 +29,8 @@ def bfs_levels(G, sources) -> np.ndarray:
     H = sp.csr_matrix((np.ones(G.nnz + src.size, dtype=np.int8), np.concatenate([G.indices, src]),
                        np.concatenate([G.indptr, [G.nnz + src.size]])), shape=(n + 1, n + 1))
     H.has_canonical_format = G.has_canonical_format         # spare the search a sorted copy
+    from scipy.sparse.csgraph import breadth_first_order      # not at import: it loads scipy.sparse.linalg
+
     order, pred = breadth_first_order(H, n, directed=True, return_predecessors=True)
     where = np.empty(n + 1, dtype=np.int64)
     where[order] = np.arange(order.size)

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from .aggregation import aggregates
 from .csr import compact
@@ -183,6 +182,8 @@ def _within_parts_rcm(A, parts):
     C = A.tocoo()
     keep = parts[C.row] == parts[C.col]
     G = sp.csr_matrix((np.ones(int(keep.sum())), (C.row[keep], C.col[keep])), shape=A.shape)
+    from scipy.sparse.csgraph import reverse_cuthill_mckee     # not at import: it loads scipy.sparse.linalg
+
     order = reverse_cuthill_mckee(G, symmetric_mode=False)
     position = np.empty(A.shape[0], dtype=np.int64)
     position[order] = np.arange(A.shape[0])
