@@ -196,7 +196,8 @@ def test_rows_given_to_ground_are_grounded_in_the_band_order_of_a_shuffled_matri
 def test_the_reverse_cuthill_mckee_order_is_scipys():
     """twolevel/cuthill.py's order (PyAMG's compiled search, no scipy.sparse.csgraph) is scipy's, permutation for
     permutation: a DMDA matrix in its own and a shuffled numbering, a Neumann square beside a log-normal one, rows
-    alone beside a grid, 200 small components, an empty pattern and, through scipy's own, an asymmetric one."""
+    alone beside a grid, 200 small components, an empty pattern, asymmetric ones (through scipy's own), a row that
+    stores no diagonal (its degree one less) and rows alone only."""
     from scipy.sparse.csgraph import reverse_cuthill_mckee as scipy_rcm
 
     from petsc_htp.twolevel.cuthill import reverse_cuthill_mckee
@@ -207,7 +208,10 @@ def test_the_reverse_cuthill_mckee_order_is_scipys():
     cases = [D, D[shuffle][:, shuffle], pair,
              sp.block_diag([sp.identity(50), D, sp.identity(7)]),
              sp.block_diag([foreign.neumann(5, 1e3, k)[0] for k in range(200)]), sp.csr_matrix((3, 3)),
-             sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0]]))]
+             sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0]])),
+             sp.csr_matrix(np.array([[1.0, 1.0], [0.0, 1.0]])),                  # row 0 out of the seed's reach
+             sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])),   # a row without diagonal
+             sp.identity(1000, format="csr")]
     for A in cases:
         A = sp.csr_matrix(A)
         A.sort_indices()
