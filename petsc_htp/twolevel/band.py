@@ -51,6 +51,8 @@ class Band:
         self.perm, qi, qj, self.width = order or ordering(rows)
         self.indptr, self.indices = rows.indptr.copy(), rows.indices.copy()
         self.own = np.array_equal(self.perm, np.arange(n))       # the rows' own order
+        self.position = np.empty(n, dtype=np.int64)              # each row's place in the band's order
+        self.position[self.perm] = np.arange(n)
         self.lower = np.flatnonzero(qi >= qj)                  # entries in the lower band of the new order
         qi, qj = qi[self.lower].astype(np.int64), qj[self.lower].astype(np.int64)
         self.at = (qi - qj) + qj * (self.width + 1)            # ab[i - j, j], Fortran order (LAPACK's lower form)
@@ -83,9 +85,7 @@ class Band:
         if self.shape[1] and given <= 1 and vanishing(row_sums(self.indptr, data), diag).all():
             grounded = np.array([self.shape[1] - 1])
         elif given:
-            inverse = np.empty(self.shape[1], dtype=np.int64)
-            inverse[self.perm] = np.arange(self.shape[1])
-            grounded = np.unique(inverse[ground])
+            grounded = np.unique(self.position[ground])
         for attempt in range(GROUND_MAX):
             info, null = self._attempt(values, diag, grounded)
             if info > 0 or null.size == 0:
@@ -113,10 +113,8 @@ class Band:
         """The last row (band order) of each connected component of the nonzero entries ``data``'s graph."""
         n = self.shape[1]
         count, label = graph_components(sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n)))
-        inverse = np.empty(n, dtype=np.int64)
-        inverse[self.perm] = np.arange(n)
         ends = np.full(count, -1, dtype=np.int64)
-        np.maximum.at(ends, label, inverse)
+        np.maximum.at(ends, label, self.position)
         return ends
 
     def solve(self, b, out):
