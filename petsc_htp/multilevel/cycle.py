@@ -24,6 +24,7 @@ from ..twolevel.inner import scoped, set_up
 DAMPING = 1.5           # the smoother's Richardson scale takes the largest eigenvalue of s M^-1 A down to this
 LANCZOS_STEPS = 6       # CG steps for that eigenvalue (each: a product with A and one with M^-1), as PETSc's Chebyshev
 SAFETY = 1.1            # ... and the factor on CG's estimate
+DOMINANT = 2.0 * SAFETY  # the finest level's Gershgorin bound of D^-1 A up to which it stands for that eigenvalue
 COARSE_BAND = 4_000_000  # most values (rows x (bandwidth + 1)) of a coarsest operator's band that LAPACK's banded
 # Cholesky factors in place of the sparse LU (32 MB; see banded)
 SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
@@ -53,9 +54,14 @@ def defaults(prefix, ranks, smoother="leaves", lu=True) -> dict:
     solve = DIAGONAL if smoother == "jacobi" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()}
     out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items() if lu or k == "ksp_type"})
-    if not any(name.startswith(prefix + "mg_levels_") for name in PETSc.Options().getAll()):
+    if not users_levels(prefix):
         out["pc_mg_distinct_smoothup"] = "true"
     return out
+
+
+def users_levels(prefix) -> bool:
+    """Whether the user set some levels' option (``mg_levels_``) under ``prefix``."""
+    return any(name.startswith(prefix + "mg_levels_") for name in PETSc.Options().getAll())
 
 
 def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None):
@@ -76,6 +82,7 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
         own = any(name.startswith((prefix + "mg_coarse_pc_", prefix + "mg_coarse_redundant_"))
                   for name in PETSc.Options().getAll())        # the user's coarse solver
         made = None if own or count < 2 else banded(ops[-1], ground)
+        finest = None if count < 2 or users_levels(prefix) else hierarchy.levels[0].bound   # before the defaults
         with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None)):
             pc.setFromOptions()
             for level in range(1, count):
@@ -103,7 +110,8 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
             if made is None:
                 set_up(coarse.getPC(), coarse.getOptionsPrefix(), {})
             pc.setUp()
-            scales = [_damped(pc, level, damping) for level in range(count - 1, 0, -1)]
+            scales = [_damped(pc, level, damping, finest if level == count - 1 else None)
+                      for level in range(count - 1, 0, -1)]
     except Exception:
         pc.destroy()
         raise
@@ -165,22 +173,30 @@ def described(pc, scales, damping) -> str:
         op = "B^-1 A"
     else:
         what, op = f"{solve} of the level's operator (the user's options)", "M^-1 A"
-    return f"one Richardson step with {what}, scaled {scaled} (largest eigenvalue of s {op} taken to {damping:g})"
+    est = f" (Lanczos; the finest level's Gershgorin bound where at most {DOMINANT:g})" if solve == PETSc.PC.Type.JACOBI \
+        else ""
+    return (f"one Richardson step with {what}, scaled {scaled} (largest eigenvalue of s {op} taken to "
+            f"{damping:g}{est})")
 
 
-def _damped(pc, level, damping) -> float:
+def _damped(pc, level, damping, bound=None) -> float:
     """The Richardson scale min(1, ``damping`` / lambda), lambda the largest eigenvalue of the smoother's
     preconditioned operator (B^-1 A or D^-1 A: Lanczos, CG's extreme singular values after :data:`LANCZOS_STEPS`
     steps from a random b, times :data:`SAFETY`; the Gershgorin bound of D^-1 A damps coarse levels too much:
     1M-row dmda2d 35 against 24 iterations), given to the smoothers of ``level`` of ``pc`` unless the user set
-    one; returns the down smoother's scale (1 for another KSP)."""
+    one; returns the down smoother's scale (1 for another KSP). Where ``bound``, the Gershgorin bound of D^-1 A
+    (given for the finest level where the user set no levels' option), is at most :data:`DOMINANT` and the
+    smoother is Jacobi, it is lambda: no Lanczos, whose CG steps on the finest level cost most of it. Weakly
+    diagonally dominant rows bound it by 2, which a mesh's checkerboard mode nearly reaches, so that Lanczos' estimate
+    times SAFETY lies about as high (the 2-D DMDA's 1.92 x 1.1)."""
     smoother = pc.getMGSmootherDown(level)
     if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
         return 1.0
     generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
     if PETSc.Options().hasName(generic):                   # the user's, for every level: no estimate
         return PETSc.Options().getReal(generic)
-    top = _largest(smoother)
+    top = bound if bound is not None and bound <= DOMINANT and smoother.getPC().getType() == PETSc.PC.Type.JACOBI \
+        else _largest(smoother)
     scale = min(1.0, damping / top) if top > 0 else 1.0
     for ksp in {smoother.handle: smoother, pc.getMGSmootherUp(level).handle: pc.getMGSmootherUp(level)}.values():
         with scoped(ksp.getOptionsPrefix(), {"ksp_richardson_scale": str(scale)}):

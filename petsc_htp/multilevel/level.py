@@ -58,8 +58,8 @@ class Level:
         self.B = None if self.pattern is None else self.pattern.matrix(self.A, rows)
         local = self.halo.matrix(rows, start)
         diag = local.data[self.at] if self.at is not None else local.diagonal()
-        bound = gershgorin(rows, diag, self.A.getComm())
-        W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / bound)
+        self.bound = gershgorin(rows, diag, self.A.getComm())
+        W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / self.bound)
         self.W = aij(self.A.getComm(), (self.A.getSizes()[0], (self.k, self.n_coarse)),
                      *split(W_rows, self.first, self.first + self.k))
         self.below = galerkin.galerkin(self.A, local, self.halo.ghosts, W_rows, self.W, self.first, self.k)
