@@ -37,13 +37,14 @@ class Level:
         start = A.getOwnershipRange()[0]
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
-            self.leaf = leaves(A, rows) if leaf is None else leaf
             lone = decoupled_rows(rows, start)
-            self.column, self.k = leaf_columns(self.leaf, lone)
-            self.joined = False
+            within = lone                   # the decoupled rows of the diagonal block: on one rank A's
             if coll.size > 1:
                 with diagonal_block(A, rows) as block:
-                    self.joined = coll.any(np.any(decoupled_rows(block) & ~lone))
+                    within = decoupled_rows(block)
+            self.joined = coll.size > 1 and coll.any(np.any(within & ~lone))
+            self.leaf = leaves(A, rows, within) if leaf is None else leaf
+            self.column, self.k = leaf_columns(self.leaf, lone)
             column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
             self.halo = galerkin.Halo(rows, start)
@@ -88,13 +89,13 @@ def _read(A, rows):
         yield rows
 
 
-def leaves(A, rows) -> np.ndarray:
+def leaves(A, rows, lone=None) -> np.ndarray:
     """The leaf of each of this rank's ``rows`` of ``A``: :data:`PASSES` aggregation passes over the strong couplings
-    of its diagonal block."""
+    of its diagonal block (``lone``: that block's decoupled rows where found)."""
     if not rows.shape[0]:
         return np.zeros(0, dtype=np.int64)
     with diagonal_block(A, rows) as block:
-        return aggregates(sp.csr_matrix(block), passes=PASSES)
+        return aggregates(sp.csr_matrix(block), passes=PASSES, lone=lone)
 
 
 class LeafPattern:

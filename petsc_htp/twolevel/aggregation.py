@@ -52,6 +52,14 @@ def decoupled_rows(A, start=0) -> np.ndarray:
     return stored - (A.diagonal(k=start) != 0) == 0
 
 
+def decoupled_among(A, rows) -> np.ndarray:
+    """Boolean, one per row of ``rows`` (indices into the square CSR ``A``): :func:`decoupled_rows` of those rows
+    alone, reading only their entries."""
+    where, owner = row_entries(A.indptr, rows)
+    coupled = (A.data[where] != 0) & (A.indices[where] != rows[owner])
+    return np.bincount(owner[coupled], minlength=rows.size) == 0
+
+
 def strength(A, theta=THETA) -> sp.csr_matrix:
     """The strong couplings of ``A`` (diagonal kept): PyAMG's symmetric strength of connection."""
     n = A.shape[0]
@@ -133,7 +141,7 @@ def _pass(M, theta) -> tuple:
     count, agg = standard(strength(M, theta))
     lone = np.flatnonzero(agg < 0)
     if lone.size:
-        coupled = lone[~decoupled_rows(M)[lone]]
+        coupled = lone[~decoupled_among(M, lone)]
         if coupled.size:                                                # weak couplings only: the largest one
             host = agg[_largest_neighbour(M, coupled)]
             agg[coupled[host >= 0]] = host[host >= 0]
@@ -168,21 +176,22 @@ def node_graph(A, node) -> sp.csr_matrix:
     return G
 
 
-def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None) -> np.ndarray:
+def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None, lone=None) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
     ``theta`` (None: :func:`threshold`'s for A; the standard passes after the first take the same on the aggregates'
     graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
     module docstring), and the rows ``alone`` (boolean, optional: :func:`..ranksplit.cut_rows`) in leaves of one row
     each. With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset`` rows into its
-    node) is aggregated, so a leaf holds whole nodes (``alone`` is not used)."""
+    node) is aggregated, so a leaf holds whole nodes (``alone`` is not used). ``lone``: A's decoupled rows where
+    already found (:func:`decoupled_rows`; not with ``bs`` > 1)."""
     if second not in SECOND:
         raise ValueError(f"unknown aggregation pass {second!r}; expected one of {', '.join(SECOND)}")
     n = A.shape[0]
     if bs > 1 and n:
         node = nodes(n, bs, offset)
         return aggregates(node_graph(A, node), theta, passes, second=second)[node]
-    lone = decoupled_rows(A)
+    lone = decoupled_rows(A) if lone is None else lone
     alone = np.zeros(n, dtype=bool) if alone is None else alone & ~lone
     keep = np.flatnonzero(~lone & ~alone)
     part = np.full(n, -1, dtype=np.int64)
