@@ -190,8 +190,8 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     cost the old leaves no extra iteration are tried on them, where CG takes a few more iterations (the coarser levels, made anew from
     the finest level's new Galerkin operator, follow the new values); a solve that took more than RENEW times
     the first one's makes the next numeric step build the hierarchy anew (here on the moved values: no more
-    iterations), as does a move whose cost is known to exceed a new hierarchy's; after a single solve (no cost
-    measured) old leaves are tried, as the two-level method's are; the pattern's analysis stays."""
+    iterations), as does a move whose cost is known to exceed a new hierarchy's, or one after a single solve (no
+    cost measured: unlike the two-level method's, old leaves are not tried); the pattern's analysis stays."""
     from petsc_htp.multilevel import setup
     from petsc_htp.scenes import foreign
 
@@ -235,7 +235,7 @@ def test_new_values_keep_the_leaves_until_keeping_them_costs_more():
     reason, its, relres, ksp, mat = solve(A, b, htp_variant="multilevel", htp_direct_max=0)
     ctx = ksp.getPC().getPythonContext()
     its5, text = frame(moved.data)
-    assert ctx.analysis_count == 1 and "kept from 1 numeric setup" in text and its5 <= setup.RENEW * its
+    assert ctx.analysis_count == 1 and "kept from" not in text and its5 <= its + 2
 
 
 def test_help_lists_the_multilevel_options_with_their_defaults():

@@ -118,19 +118,19 @@ class MultilevelPC:
         """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from
         the finest leaves (:mod:`.moved`) by more than keeping them costs, the next numeric step builds the hierarchy
         anew (:attr:`renew`; the analysis kept: at 65 536 rows the whole-matrix choice and the null components took
-        15 of a frame's 110 ms of set-up) where what old leaves cost (the extra iterations they took, at ms per
-        iteration, or ``penalty``, that cost the last time values moved, which the variant keeps:
-        :meth:`..variants.TwoLevel.moved`; :func:`..twolevel.spacereuse.stale_cost`) exceeds what a new hierarchy
-        costs beyond a refresh. Where no cost was measured yet old leaves are tried, as the two-level method's are:
-        with the coarser levels made anew they cost few iterations (the DMDA's inclusions that move every frame,
-        65 536 rows: 19-24 against 17 CG iterations, a frame's set-up 50-67 against 79-95 ms; 1M rows 22-23 against
-        20-21, 604-889 against 851-1 050 ms). This rank's alone: :meth:`numeric` or's it over the ranks."""
+        15 of a frame's 110 ms of set-up). Unlike the two-level method, whose analysis costs several solves, old
+        leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed, which
+        inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept as at
+        commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
+        extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time values moved,
+        which the variant keeps: :meth:`..variants.TwoLevel.moved`) does keeping them win when it is the smaller
+        (:func:`..twolevel.spacereuse.stale_cost`). This rank's alone: :meth:`numeric` or's it over the ranks."""
         self.renew = False
         if self.weak is None or not self.weak.moved(rows):
             return False
         cost = stale_cost(self.leaf_its, self.ms_per_it)
         cost = penalty if cost is None else cost
-        self.renew = cost is not None and cost > self.build_ms - self.refresh_ms
+        self.renew = cost is None or cost > self.build_ms - self.refresh_ms
         return False
 
     def mult(self, x, y):
