@@ -119,9 +119,11 @@ class MultilevelPC:
         the finest leaves (:mod:`.moved`) by more than keeping them costs, the next numeric step builds the hierarchy
         anew (:attr:`renew`; the analysis kept: at 65 536 rows the whole-matrix choice and the null components took
         15 of a frame's 110 ms of set-up). Unlike the two-level method, whose analysis costs several solves, old
-        leaves are not tried first: a hierarchy made anew costs about ten iterations beyond one refreshed, which
-        inclusions that moved cost twice over (1M rows, new inclusions every frame, every level's leaves kept as at
-        commit de23174: 44 against 23 CG iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
+        leaves are not tried first: with the coarser levels made anew they save in set-up what they cost in
+        iterations (the DMDA program's inclusions that move every frame, commit 0a895bc against 8afa566: 65 536 rows
+        19-24 against 17 iterations, the median frame 118-132 against 118-168 ms; 1M rows 20-24 against 20-21,
+        2 040-2 382 against 2 322-2 549 ms: ``results/seqkeep-20261128``), and every level's kept cost twice
+        over (commit de23174, 1M rows: 44 against 23 iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
         extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time values moved,
         which the variant keeps: :meth:`..variants.TwoLevel.moved`) does keeping them win when it is the smaller
         (:func:`..twolevel.spacereuse.stale_cost`). This rank's alone: :meth:`numeric` or's it over the ranks."""
