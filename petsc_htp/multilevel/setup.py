@@ -120,7 +120,7 @@ class MultilevelPC:
         anew (:attr:`renew`; the analysis kept: at 65 536 rows the whole-matrix choice and the null components took
         15 of a frame's 110 ms of set-up). Unlike the two-level method, whose analysis costs several solves, old
         leaves are not tried first: with the coarser levels made anew they save in set-up what they cost in
-        iterations (the DMDA program's inclusions that move every frame, commit 0a895bc against 8afa566: 65 536 rows
+        iterations (the DMDA program's inclusions that move every frame, commit 901086a against 8afa566: 65 536 rows
         19-24 against 17 iterations, the median frame 118-132 against 118-168 ms; 1M rows 20-24 against 20-21,
         2 040-2 382 against 2 322-2 549 ms: ``results/seqkeep-20261128``), and every level's kept cost twice
         over (commit de23174, 1M rows: 44 against 23 iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
