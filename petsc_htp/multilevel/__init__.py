@@ -5,6 +5,7 @@ each rank its own rows), takes the leaf constants as coarse vectors, smooths the
 Galerkin operator W^T A W, which the next level splits again (:mod:`.hierarchy`), down to a coarse operator small
 enough for one factor. PETSc's PCMG runs the V-cycle (:mod:`.cycle`): on each level one Richardson step
 preconditioned by D^-1 (2-D graphs) or by the exact solves of the level's leaf blocks (one Cholesky factor of the
-block-diagonal leaf matrix per rank; 3-D), damped by Lanczos' largest eigenvalue; on the coarsest LAPACK's banded
+block-diagonal leaf matrix per rank; 3-D), damped by Lanczos' largest eigenvalue (the finest Jacobi step by its
+Gershgorin bound where rows are weakly dominant); on the coarsest LAPACK's banded
 Cholesky factor where its band is narrow, else the sparse LU.
 """

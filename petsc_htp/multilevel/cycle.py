@@ -10,7 +10,8 @@ both ways, as PCMG's default, so that it reaches both.
 
 Two smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``jacobi``, one Richardson step with D^-1 (no factor, no
 leaf-block matrix: the levels' options of the user's then act on the level's operator); ``leaves``, one with the
-exact solves of the level's leaf blocks; both scaled by Lanczos. On 2-D graphs Jacobi costs less for the same
+exact solves of the level's leaf blocks; both scaled by Lanczos (the finest level's Jacobi step by its Gershgorin
+bound where that is at most :data:`DOMINANT`). On 2-D graphs Jacobi costs less for the same
 iterations (the smoothed coarse vectors carry what the leaf solves added), in 3-D the leaf solves take fewer (see
 :func:`default_smoother`).
 """
