@@ -6,6 +6,6 @@ Galerkin operator W^T A W, which the next level splits again (:mod:`.hierarchy`)
 enough for one factor. PETSc's PCMG runs the V-cycle (:mod:`.cycle`): on each level one Richardson step
 preconditioned by D^-1 (2-D graphs) or by the exact solves of the level's leaf blocks (one Cholesky factor of the
 block-diagonal leaf matrix per rank; 3-D), damped by Lanczos' largest eigenvalue (the finest Jacobi step by its
-Gershgorin bound where rows are weakly dominant); on the coarsest LAPACK's banded
+Gershgorin bound where that is at most 2.2, unless a levels' option is set); on the coarsest LAPACK's banded
 Cholesky factor where its band is narrow, else the sparse LU.
 """

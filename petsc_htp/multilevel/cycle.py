@@ -69,7 +69,7 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
     """A PCMG (set up) running V-cycles on ``hierarchy`` under the options ``prefix`` with ``smoother`` (one of
     :data:`SMOOTHERS`; ``leaves`` needs the hierarchy's leaf blocks), the coarsest operator's rows ``ground``
     grounded in its banded factor (:func:`banded`); returns (the PC, the Richardson scale of each smoothed level,
-    finest first)."""
+    finest first, :class:`Scale`)."""
     ops = hierarchy.operators()
     comm = ops[0].getComm()
     pc = PETSc.PC().create(comm)
@@ -174,13 +174,25 @@ def described(pc, scales, damping) -> str:
         op = "B^-1 A"
     else:
         what, op = f"{solve} of the level's operator (the user's options)", "M^-1 A"
-    est = f" (Lanczos; the finest level's Gershgorin bound where at most {DOMINANT:g})" if solve == PETSc.PC.Type.JACOBI \
-        else ""
+    by = [getattr(s, "by", "") for s in scales]
+    est = (": the finest level's Gershgorin bound" + (", Lanczos' on the others" if len(by) > 1 else "")
+           if by[:1] == ["Gershgorin"] else ": Lanczos'" if "Lanczos" in by else "")
+    est += "; the user's scale where given" if est and "" in by else ""
     return (f"one Richardson step with {what}, scaled {scaled} (largest eigenvalue of s {op} taken to "
             f"{damping:g}{est})")
 
 
-def _damped(pc, level, damping, bound=None) -> float:
+class Scale(float):
+    """A smoother's Richardson scale, :attr:`by` naming what gave the eigenvalue it takes to the damping: 'Gershgorin',
+    'Lanczos', or '' (the user's scale)."""
+
+    def __new__(cls, value, by=""):
+        scale = super().__new__(cls, value)
+        scale.by = by
+        return scale
+
+
+def _damped(pc, level, damping, bound=None) -> Scale:
     """The Richardson scale min(1, ``damping`` / lambda), lambda the largest eigenvalue of the smoother's
     preconditioned operator (B^-1 A or D^-1 A: Lanczos, CG's extreme singular values after :data:`LANCZOS_STEPS`
     steps from a random b, times :data:`SAFETY`; the Gershgorin bound of D^-1 A damps coarse levels too much:
@@ -189,20 +201,24 @@ def _damped(pc, level, damping, bound=None) -> float:
     (given for the finest level where the user set no levels' option), is at most :data:`DOMINANT` and the
     smoother is Jacobi, it is lambda: no Lanczos, whose CG steps on the finest level cost most of it. Weakly
     diagonally dominant rows bound it by 2, which a mesh's checkerboard mode nearly reaches, so that Lanczos' estimate
-    times SAFETY lies about as high (the 2-D DMDA's 1.92 x 1.1)."""
+    times SAFETY lies about as high (the 2-D DMDA's 1.92 x 1.1; the finest operator's diagonal is positive:
+    :mod:`..validation`)."""
     smoother = pc.getMGSmootherDown(level)
     if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
-        return 1.0
+        return Scale(1.0)
     generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
     if PETSc.Options().hasName(generic):                   # the user's, for every level: no estimate
-        return PETSc.Options().getReal(generic)
-    top = bound if bound is not None and bound <= DOMINANT and smoother.getPC().getType() == PETSc.PC.Type.JACOBI \
-        else _largest(smoother)
+        return Scale(PETSc.Options().getReal(generic))
+    bounded = bound is not None and bound <= DOMINANT and smoother.getPC().getType() == PETSc.PC.Type.JACOBI
+    top = bound if bounded else _largest(smoother)
     scale = min(1.0, damping / top) if top > 0 else 1.0
     for ksp in {smoother.handle: smoother, pc.getMGSmootherUp(level).handle: pc.getMGSmootherUp(level)}.values():
         with scoped(ksp.getOptionsPrefix(), {"ksp_richardson_scale": str(scale)}):
             ksp.setFromOptions()
-    return PETSc.Options(smoother.getOptionsPrefix()).getReal("ksp_richardson_scale", scale)
+    level_own = PETSc.Options(smoother.getOptionsPrefix())          # a scale the user gave this level wins
+    if level_own.hasName("ksp_richardson_scale"):
+        return Scale(level_own.getReal("ksp_richardson_scale"))
+    return Scale(scale, "Gershgorin" if bounded else "Lanczos")
 
 
 def _largest(smoother) -> float:
