@@ -6,11 +6,8 @@
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 P=${PYTHON:-$(pwd)/.venv/bin/python}
 OLD=$1; NEW=$2; N=${3:-512}; REPS=${4:-5}
-TREES=$(mktemp -d)
-for c in $OLD $NEW; do
-  git worktree add -q "$TREES/$c" $c && (cd "$TREES/$c" && $P -m compileall -q petsc_htp > /dev/null)
-done
-HTP="-ksp_type cg -ksp_rtol 1e-8 -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC"
+COMMITS="$OLD $NEW"
+. results/abtrees.sh
 for r in $(seq $REPS); do
   for c in $OLD $NEW; do
     for ranks in 1 2; do
@@ -20,5 +17,4 @@ for r in $(seq $REPS); do
     done
   done
 done
-for c in $OLD $NEW; do git worktree remove --force "$TREES/$c"; done
-rm -rf "$TREES"
+trees_remove

@@ -8,11 +8,8 @@
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 P=${PYTHON:-$(pwd)/.venv/bin/python}
 N=${1:-256}; FRAMES=${2:-8}; REPS=${3:-5}
-TREES=$(mktemp -d)
-for c in 68b2767 dffb055; do
-  git worktree add -q "$TREES/$c" $c && (cd "$TREES/$c" && $P -m compileall -q petsc_htp > /dev/null)
-done
-HTP="-ksp_type cg -ksp_rtol 1e-8 -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC"
+COMMITS="68b2767 dffb055"
+. results/abtrees.sh
 for r in $(seq $REPS); do
   for c in 68b2767 dffb055; do
     $P "$TREES/$c/examples/dmda_poisson.py" -n $N -warmup -frames $FRAMES $HTP -log_view > "$TREES/out" 2>&1
@@ -24,5 +21,4 @@ e = "; ".join(f"{m[0]} {m[1]} calls {float(m[2]):.3f} s" for m in re.findall(r"^
 print(f"{e}; frames: median setup {st.median(a for a, _, _ in f):.1f} ms, solve {st.median(b for _, b, _ in f):.1f} ms, iterations {[int(c) for _, _, c in f]}")' "$TREES/out"
   done
 done
-for c in 68b2767 dffb055; do git worktree remove --force "$TREES/$c"; done
-rm -rf "$TREES"
+trees_remove

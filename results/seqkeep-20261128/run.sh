@@ -7,11 +7,8 @@
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 P=${PYTHON:-$(pwd)/.venv/bin/python}
 OLD=$1; NEW=$2; N=${3:-256}; FRAMES=${4:-8}; REPS=${5:-5}
-TREES=$(mktemp -d)
-for c in $OLD $NEW; do
-  git worktree add -q "$TREES/$c" $c && (cd "$TREES/$c" && $P -m compileall -q petsc_htp > /dev/null)
-done
-HTP="-ksp_type cg -ksp_rtol 1e-8 -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC"
+COMMITS="$OLD $NEW"
+. results/abtrees.sh
 for r in $(seq $REPS); do
   for c in $OLD $NEW; do
     $P "$TREES/$c/examples/dmda_poisson.py" -n $N -warmup -frames $FRAMES $HTP > "$TREES/out" 2>&1
@@ -23,5 +20,4 @@ print(f"median setup {st.median(a for a, _, _ in f):.1f} ms, solve {st.median(b 
       f"setup + solve {st.median(a + b for a, b, _ in f):.1f} ms, iterations {[c for _, _, c in f]}")' "$TREES/out"
   done
 done
-for c in $OLD $NEW; do git worktree remove --force "$TREES/$c"; done
-rm -rf "$TREES"
+trees_remove
