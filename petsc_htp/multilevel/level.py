@@ -98,6 +98,21 @@ def leaves(A, rows, lone=None) -> np.ndarray:
         return aggregates(sp.csr_matrix(block), passes=PASSES, lone=lone)
 
 
+def banded_leaves(A, rows, leaf) -> np.ndarray:
+    """``leaf`` (this rank's rows' leaves) renumbered in reverse Cuthill-McKee order of the leaves' graph (each pair's
+    couplings summed in magnitude in this rank's diagonal block): rows taken in that order of their leaves lie near
+    the rows they couple to, and so do the coarse rows of every level below, whatever the user's numbering."""
+    from ..twolevel.aggregation import leaf_graph
+    from ..twolevel.cuthill import reverse_cuthill_mckee
+
+    count = int(leaf.max()) + 1 if leaf.size else 0
+    with diagonal_block(A, rows) as block:
+        order = reverse_cuthill_mckee(leaf_graph(sp.csr_matrix(block), leaf, count))
+    rank = np.empty(count, dtype=np.int64)
+    rank[order] = np.arange(count)
+    return rank[leaf]
+
+
 class LeafPattern:
     """Which of this rank's ``rows`` (global columns) of ``A`` couple rows of one leaf: :meth:`matrix` lays them out
     as ``A``, a block-diagonal matrix whose Cholesky factor in the natural order fills only within the leaves."""

@@ -14,7 +14,7 @@ from ..twolevel.spacereuse import stale_cost
 from . import cycle
 from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
-from .level import JACOBI, leaves
+from .level import JACOBI, banded_leaves, leaves
 from .moved import WeakInside
 from .ranges import Ranges
 
@@ -95,7 +95,7 @@ class MultilevelPC:
             self.weak = WeakInside(rows, self.mat.getOwnershipRange()[0], leaf)
             A = self.mat
             if self.reorder:
-                self.perm = np.argsort(leaf, kind="stable").astype(PETSc.IntType)
+                self.perm = np.argsort(banded_leaves(self.mat, rows, leaf), kind="stable").astype(PETSc.IntType)
                 self.order = PETSc.IS().createGeneral(self.perm + self.mat.getOwnershipRange()[0],
                                                       comm=self.mat.getComm())
                 A = self.P = self.mat.createSubMatrix(self.order, self.order)
