@@ -151,7 +151,7 @@ def _pass(M, theta) -> tuple:
     return count, agg
 
 
-def leaf_graph(M, agg, count) -> sp.csr_matrix:
+def _graph(M, agg, count) -> sp.csr_matrix:
     """The aggregates' graph: each pair's couplings summed in magnitude (self couplings on the diagonal), as
     P^T |M| P with P the aggregation matrix (scipy's compiled sparse products)."""
     n = M.shape[0]
@@ -169,8 +169,8 @@ def nodes(n, bs, offset=0) -> np.ndarray:
 
 def node_graph(A, node) -> sp.csr_matrix:
     """The graph of ``A``'s nodes (``node``: each row's, :func:`nodes`): the Frobenius norm of every node block
-    (PyAMG's amalgamation for block matrices: :func:`leaf_graph` of A's squared entries, then the root)."""
-    G = leaf_graph(sp.csr_matrix((np.square(A.data), A.indices, A.indptr), shape=A.shape), node,
+    (PyAMG's amalgamation for block matrices: :func:`_graph` of A's squared entries, then the root)."""
+    G = _graph(sp.csr_matrix((np.square(A.data), A.indices, A.indptr), shape=A.shape), node,
                int(node[-1]) + 1 if node.size else 0)
     G.data = np.sqrt(G.data)
     return G
@@ -207,7 +207,7 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
                 count, node = _pass(M, theta)
             agg = node[agg]
             if step + 1 < passes:
-                M = leaf_graph(M, node, count)
+                M = _graph(M, node, count)
         part[keep] = agg
     if alone.any():                                                     # rows strongly coupled to other ranks
         part[alone] = count + np.arange(np.count_nonzero(alone))
