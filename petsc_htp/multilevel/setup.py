@@ -115,17 +115,16 @@ class MultilevelPC:
             self.pc, self.scales = cycle.multigrid(self.hierarchy, self.prefix, self.damping, self.smoother, ground)
 
     def moved(self, rows, penalty=None) -> bool:
-        """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from
-        the finest leaves (:mod:`.moved`) by more than keeping them costs, the next numeric step builds the hierarchy
-        anew (:attr:`renew`; the analysis kept: at 65 536 rows the whole-matrix choice and the null components took
-        15 of a frame's 110 ms of set-up). Unlike the two-level method, whose analysis costs several solves, old
-        leaves are not tried first: with the coarser levels made anew they save in set-up what they cost in
-        iterations (the DMDA program's inclusions that move every frame, commit 901086a against 8afa566: 65 536 rows
-        19-24 against 17 iterations, the median frame 118-132 against 118-168 ms; 1M rows 20-24 against 20-21,
-        2 040-2 382 against 2 322-2 549 ms: ``results/seqkeep-20261128``), and every level's kept cost twice
-        over (commit de23174, 1M rows: 44 against 23 iterations, 3.0 against 2.2 s a frame); only where a cost was measured (the
-        extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time values moved,
-        which the variant keeps: :meth:`..variants.TwoLevel.moved`) does keeping them win when it is the smaller
+        """False: new values of the pattern call for no new analysis. Where ``rows`` (this rank's) moved away from the
+        finest leaves (:mod:`.moved`) by more than keeping them costs, the next numeric step builds the hierarchy anew
+        (:attr:`renew`; the analysis kept: the whole-matrix choice and the null components took 15 of 110 ms a frame).
+        Unlike the two-level method, whose analysis costs several solves, old leaves are not tried first: with the
+        coarser levels made anew they save in set-up what they cost in iterations (inclusions that move every frame,
+        901086a against 8afa566: 65 536 rows 19-24 against 17 iterations, 118-132 against 118-168 ms a frame; 1M rows
+        20-24 against 20-21, 2 040-2 382 against 2 322-2 549 ms: ``results/seqkeep-20261128``), every level's kept twice
+        that (de23174, 1M rows: 44 against 23 iterations, 3.0 against 2.2 s a frame); only where a cost was measured
+        (the extra iterations old leaves took, at ms per iteration, or ``penalty``, that cost the last time values
+        moved, which the variant keeps: :meth:`..variants.TwoLevel.moved`) does keeping them win when it is the smaller
         (:func:`..twolevel.spacereuse.stale_cost`). This rank's alone: :meth:`numeric` or's it over the ranks."""
         self.renew = False
         if self.weak is None or not self.weak.moved(rows):
