@@ -99,17 +99,18 @@ def leaves(A, rows, lone=None) -> np.ndarray:
 
 
 def banded_leaves(A, rows, leaf) -> np.ndarray:
-    """``leaf`` (this rank's rows' leaves) renumbered in the order their rows first come in the reverse Cuthill-McKee
-    order of this rank's diagonal block: rows taken in that order of their leaves lie near the rows they couple to,
-    and so do the coarse rows of every level below, whatever the user's numbering (one breadth-first search of the
-    rows: the leaves' own graph, made by sparse products on rows numbered at random, cost more than it saved)."""
+    """``leaf`` (this rank's rows' leaves) renumbered in the order their rows first come in a breadth-first (reverse
+    Cuthill-McKee) order of this rank's diagonal block: rows taken in that order of their leaves lie near the rows they
+    couple to, and so do the coarse rows of every level below, which the leaves' numbers number, whatever the user's
+    numbering (one breadth-first search of the rows: the leaves' own graph, made by sparse products on rows numbered at
+    random, cost more than it saved)."""
     from ..twolevel.cuthill import reverse_cuthill_mckee
 
     count = int(leaf.max()) + 1 if leaf.size else 0
     with diagonal_block(A, rows) as block:
         seen = leaf[reverse_cuthill_mckee(block, exact=False)]
-    first = np.empty(count, dtype=np.int64)
-    first[seen[::-1]] = np.arange(seen.size - 1, -1, -1)         # each leaf's first place (the last write wins)
+    first = np.full(count, seen.size, dtype=np.int64)
+    np.minimum.at(first, seen, np.arange(seen.size))             # each leaf's first place
     rank = np.empty(count, dtype=np.int64)
     rank[np.argsort(first, kind="stable")] = np.arange(count)
     return rank[leaf]

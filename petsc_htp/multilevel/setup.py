@@ -95,7 +95,8 @@ class MultilevelPC:
             self.weak = WeakInside(rows, self.mat.getOwnershipRange()[0], leaf)
             A = self.mat
             if self.reorder:
-                self.perm = np.argsort(banded_leaves(self.mat, rows, leaf), kind="stable").astype(PETSc.IntType)
+                leaf = banded_leaves(self.mat, rows, leaf)          # numbered so: each level's coarse columns too
+                self.perm = np.argsort(leaf, kind="stable").astype(PETSc.IntType)
                 self.order = PETSc.IS().createGeneral(self.perm + self.mat.getOwnershipRange()[0],
                                                       comm=self.mat.getComm())
                 A = self.P = self.mat.createSubMatrix(self.order, self.order)

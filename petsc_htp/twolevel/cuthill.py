@@ -12,7 +12,7 @@ from .nullspace import pattern_components
 
 def reverse_cuthill_mckee(rows, exact=True) -> np.ndarray:
     """The reverse Cuthill-McKee permutation of the square CSR ``rows`` (a symmetric pattern; every stored entry a
-    coupling), as scipy's: a row's degree its stored entries, plus one where it stores its diagonal; each connected
+    coupling), as scipy's (with ``exact``): a row's degree its stored entries, plus one where it stores its diagonal; each connected
     component in turn from its row of least degree (numpy's argsort of the degrees), breadth first, each row's new
     neighbours by their degrees, then the whole order reversed; components of one row placed at once. Scipy's own
     where a search reaches less than its component (an asymmetric pattern). ``exact=False`` takes each row's new
@@ -25,7 +25,7 @@ def reverse_cuthill_mckee(rows, exact=True) -> np.ndarray:
     row = np.repeat(np.arange(n, dtype=it), count)
     degree = count.copy()
     degree[row[indices == row]] += 1                         # a stored diagonal (once, stored twice or not)
-    by_degree = np.ascontiguousarray(indices[np.lexsort((degree[indices], row))] if exact else indices)  # stably
+    by_degree = np.ascontiguousarray(indices[np.lexsort((degree[indices], row))] if exact else indices)
     _, label = pattern_components(indptr, by_degree, n)     # no search leaves its component (scipy's if one could)
     size = np.bincount(label, minlength=1)
     seeds = np.argsort(degree.astype(rows.indices.dtype, copy=False))
