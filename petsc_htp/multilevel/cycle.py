@@ -48,21 +48,23 @@ def default_smoother(dim) -> str:
     return "jacobi" if dim == 2 else "leaves"
 
 
-def defaults(prefix, ranks, smoother="leaves", lu=True) -> dict:
+def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None) -> dict:
     """The PCMG's defaults under ``prefix`` on ``ranks`` (1, or 2 for several) with ``smoother`` (one of
     :data:`SMOOTHERS`), the coarse LU's where ``lu`` (else only KSPPREONLY: the banded factor's PC is set apart):
     PCMG's distinct up smoothers unless the user set a levels' option."""
     solve = DIAGONAL if smoother == "jacobi" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()}
     out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items() if lu or k == "ksp_type"})
-    if not users_levels(prefix):
+    if not (users_levels(prefix) if theirs is None else theirs):
         out["pc_mg_distinct_smoothup"] = "true"
     return out
 
 
-def users_levels(prefix) -> bool:
-    """Whether the user set some levels' option (``mg_levels_``) under ``prefix``."""
-    return any(name.startswith(prefix + "mg_levels_") for name in PETSc.Options().getAll())
+def users_levels(prefix, names=None) -> bool:
+    """Whether the user set some levels' option (``mg_levels_``) under ``prefix`` (``names``: the options database's
+    names, where read)."""
+    names = PETSc.Options().getAll() if names is None else names
+    return any(name.startswith(prefix + "mg_levels_") for name in names)
 
 
 def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None):
@@ -80,11 +82,13 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
         count = len(ops)
         pc.setMGLevels(count)
         pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
+        names = PETSc.Options().getAll()                   # the user's, before the defaults
         own = any(name.startswith((prefix + "mg_coarse_pc_", prefix + "mg_coarse_redundant_"))
-                  for name in PETSc.Options().getAll())        # the user's coarse solver
+                  for name in names)                        # the user's coarse solver
         made = None if own or count < 2 else banded(ops[-1], ground)
-        finest = None if count < 2 or users_levels(prefix) else hierarchy.levels[0].bound   # before the defaults
-        with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None)):
+        theirs = users_levels(prefix, names)
+        finest = None if count < 2 or theirs else hierarchy.levels[0].bound
+        with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None, theirs)):
             pc.setFromOptions()
             for level in range(1, count):
                 pc.setMGInterpolation(level, hierarchy.levels[count - 1 - level].W)
@@ -174,7 +178,7 @@ def described(pc, scales, damping) -> str:
         op = "B^-1 A"
     else:
         what, op = f"{solve} of the level's operator (the user's options)", "M^-1 A"
-    by = [getattr(s, "by", "") for s in scales]
+    by = [s.by for s in scales]
     est = (": the finest level's Gershgorin bound" + (", Lanczos' on the others" if len(by) > 1 else "")
            if by[:1] == ["Gershgorin"] else ": Lanczos'" if "Lanczos" in by else "")
     est += "; the user's scale where given" if est and "" in by else ""

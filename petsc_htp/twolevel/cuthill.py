@@ -12,12 +12,12 @@ from .nullspace import pattern_components
 
 def reverse_cuthill_mckee(rows, exact=True) -> np.ndarray:
     """The reverse Cuthill-McKee permutation of the square CSR ``rows`` (a symmetric pattern; every stored entry a
-    coupling), as scipy's (with ``exact``): a row's degree its stored entries, plus one where it stores its diagonal; each connected
-    component in turn from its row of least degree (numpy's argsort of the degrees), breadth first, each row's new
-    neighbours by their degrees, then the whole order reversed; components of one row placed at once. Scipy's own
-    where a search reaches less than its component (an asymmetric pattern). ``exact=False`` takes each row's new
-    neighbours in their stored order: an order as local, without the sort of every entry by degree (P1 triangles
-    numbered at random, 262 144 rows: most of the 177 ms)."""
+    coupling), as scipy's (with ``exact``): a row's degree its stored entries, plus one where it stores its diagonal;
+    each connected component in turn from its row of least degree (numpy's argsort of the degrees), breadth first,
+    each row's new neighbours by their degrees, then the whole order reversed; components of one row placed at once.
+    Scipy's own where a search reaches less than its component (an asymmetric pattern). ``exact=False`` takes each
+    row's new neighbours in their stored order: an order as local, without the sort of every entry by degree (P1
+    triangles numbered at random, 262 144 rows: most of the 177 ms)."""
     n = rows.shape[0]
     it = np.int32 if max(n, rows.indices.size) < 2 ** 31 else np.int64
     indptr, indices = rows.indptr.astype(it, copy=False), rows.indices.astype(it, copy=False)
