@@ -17,6 +17,8 @@ iterations (the smoothed coarse vectors carry what the leaf solves added), in 3-
 """
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 from petsc4py import PETSc
 
@@ -121,6 +123,24 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
         pc.destroy()
         raise
     return pc, scales
+
+
+@contextlib.contextmanager
+def bare(A):
+    """``A`` with its null space detached while the V-cycle runs: each smoother's KSPSolve would project its
+    right-hand side on it, and on the transpose null space a symmetric matrix takes from it (a copy, a sum and a
+    shift a step; PCMG's application on the bare Neumann square of 65 536 rows took 5.4 ms so, 3.6 without). The
+    outer KSP projects M's output and the coarsest factor is grounded; a transpose null space of the user's own
+    stays (PETSc shows no difference between it and the one taken)."""
+    null = A.getNullSpace()
+    if not null.handle:
+        yield A
+        return
+    A.setNullSpace(PETSc.NullSpace())
+    try:
+        yield A
+    finally:
+        A.setNullSpace(null)
 
 
 def banded(A, ground=None):

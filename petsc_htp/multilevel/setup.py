@@ -146,7 +146,8 @@ class MultilevelPC:
             x.copy(self.xw)
             x = null.project(self.xw)
         if self.P is None:
-            self.pc.apply(x, y)
+            with cycle.bare(self.mat):
+                self.pc.apply(x, y)
         else:
             np.take(x.array_r, self.perm, out=self.xp.array_w)      # no temporary of the permuted vector
             self.pc.apply(self.xp, self.yp)
