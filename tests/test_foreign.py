@@ -74,6 +74,17 @@ def test_aggregation_leaves_cover_every_row_and_keep_decoupled_rows_apart(second
         aggregates(A, second="triples")
 
 
+@pytest.mark.parametrize("passes, second", [(1, "standard"), (2, "standard"), (2, "pairs")])
+def test_decoupled_rows_leave_the_coupled_rows_aggregates_as_their_submatrix_would(passes, second):
+    """The passes run on A itself, where decoupled rows stand alone in the strong graph: the coupled rows' leaves are
+    those of the submatrix of the coupled rows alone (numbered the same), in 2-D and 3-D."""
+    for A in (foreign.dmda(2, 40)[0], foreign.dmda(3, 16)[0]):
+        keep = np.flatnonzero(~decoupled_rows(A))
+        part = aggregates(A, passes=passes, second=second)
+        alone = aggregates(A[keep][:, keep].tocsr(), passes=passes, second=second)
+        assert keep.size < A.shape[0] and np.array_equal(part[keep], alone), (passes, second)
+
+
 @pytest.mark.parametrize("second", ["standard", "pairs"])
 def test_aggregation_keeps_strongly_coupled_rows_together(second):
     """A jump of 1e6 across x = 1/2: no leaf holds rows on both sides."""
