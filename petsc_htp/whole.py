@@ -101,9 +101,12 @@ class WholeChoice:
         own order or, up to :data:`.twolevel.sizing.BAND_RCM_MAX` rows, in reverse Cuthill-McKee's
         (:func:`.twolevel.band.ordering`), :attr:`why` saying so; else None."""
         from .twolevel import sizing
-        from .twolevel.band import Band, ordering
+        from .twolevel.band import Band, ordering, own_width
 
-        order = ordering(A, reorder=A.shape[0] <= sizing.BAND_RCM_MAX)
+        reorder = A.shape[0] <= sizing.BAND_RCM_MAX
+        if not reorder and own_width(A) > sizing.BAND_WIDTH:
+            return None
+        order = ordering(A, reorder=reorder)
         width = order[3]
         if width > sizing.BAND_WIDTH:
             return None

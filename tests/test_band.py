@@ -7,7 +7,7 @@ from petsc4py import PETSc
 
 from petsc_htp.scenes import foreign
 from petsc_htp.twolevel import sizing
-from petsc_htp.twolevel.band import Band, ordering
+from petsc_htp.twolevel.band import Band, ordering, own_width
 from test_foreign import lines, solve
 
 
@@ -344,3 +344,18 @@ def test_a_test_against_the_initial_residual_takes_no_start(ksp_type):
     assert np.linalg.norm(b - A @ x.getArray()) <= 1e-8 * np.linalg.norm(b)
     ksp.destroy()
     mat.destroy()
+
+
+def test_the_own_orders_bandwidth_reads_each_rows_ends_where_sorted_and_every_entry_where_not():
+    """own_width gives the largest |i - j| over the stored entries, from each row's first and last column where the
+    columns are sorted, from every entry where they are not (rows reversed), empty rows and an empty matrix too."""
+    rng = np.random.default_rng(3)
+    for seed in range(60):
+        n = int(rng.integers(1, 50))
+        A = sp.random(n, n, density=rng.uniform(0.0, 0.3), format="csr", random_state=seed)
+        A = (A + A.T).tocsr()
+        A.sort_indices()
+        want = int(np.abs(np.repeat(np.arange(n), np.diff(A.indptr)) - A.indices).max()) if A.nnz else 0
+        backwards = np.concatenate([A.indices[A.indptr[i]:A.indptr[i + 1]][::-1] for i in range(n)])
+        U = sp.csr_matrix((A.data, backwards.astype(A.indices.dtype), A.indptr), shape=A.shape)
+        assert own_width(A) == want and own_width(U) == want, seed

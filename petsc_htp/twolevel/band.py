@@ -30,7 +30,7 @@ def ordering(rows, reorder=True) -> tuple:
     Cuthill-McKee's, or where not ``reorder``; else RCM's."""
     n = rows.shape[0]
     qi, qj = np.repeat(np.arange(n, dtype=rows.indices.dtype), np.diff(rows.indptr)), rows.indices
-    natural = int(np.abs(qi - qj).max()) if rows.nnz else 0
+    natural = own_width(rows)
     if natural <= NATURAL_WIDTH or not reorder:
         return np.arange(n), qi, qj, natural
     perm = reverse_cuthill_mckee(rows)
@@ -39,6 +39,19 @@ def ordering(rows, reorder=True) -> tuple:
     ri, rj = inverse[qi], inverse[qj]
     width = int(np.abs(ri - rj).max())
     return (np.arange(n), qi, qj, natural) if width >= natural else (perm, ri, rj, width)
+
+
+def own_width(rows) -> int:
+    """The bandwidth of the CSR ``rows`` in their own order: from each row's first and last stored column where the
+    columns are sorted (PETSc's are; the 2-D DMDA's 262 144 rows 3.7 against 6.4 ms), else from every entry."""
+    if not rows.nnz:
+        return 0
+    if rows.has_sorted_indices:
+        full = np.flatnonzero(rows.indptr[:-1] < rows.indptr[1:])
+        first, last = rows.indices[rows.indptr[full]], rows.indices[rows.indptr[full + 1] - 1]
+        return int(max((full - first).max(), (last - full).max(), 0))
+    qi = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype), np.diff(rows.indptr))
+    return int(np.abs(qi - rows.indices).max())
 
 
 class Band:
