@@ -479,3 +479,25 @@ def test_the_v_cycle_runs_on_the_operator_without_its_null_space(smoother):
     assert reason > 0 and relres <= 1e-8 and its <= 20, (reason, its, relres)
     assert mat.getNullSpace().handle == null.handle
     assert len(calls) <= 2 * its + 4, (len(calls), its)
+
+
+def test_the_range_projection_takes_each_null_components_mean_and_the_whole_ones_alone():
+    """RangeCheck.project removes each null component's mean from its rows and leaves grounded components alone: one
+    component of every row (the mean alone, :attr:`whole`), and two Neumann squares beside a Dirichlet one."""
+    from petsc_htp.collective import Collective
+    from petsc_htp.twolevel.consistency import RangeCheck
+
+    square = CASES["neumann"](1024, 0)[0].tocsr()
+    grounded = (square + sp.eye(square.shape[0])).tocsr()
+    n = square.shape[0]
+    rng = np.random.default_rng(0)
+    for A, comp, null in ((square, np.zeros(n, dtype=np.int64), np.array([True])),
+                          (sp.block_diag([square, grounded, square], format="csr"), np.repeat(np.arange(3), n),
+                           np.array([True, False, True]))):
+        check = RangeCheck(A, comp, null, Collective(PETSc.COMM_SELF))
+        vec = PETSc.Vec().createWithArray(rng.standard_normal(A.shape[0]), comm=PETSc.COMM_SELF)
+        want = vec.getArray().copy()
+        for c in np.flatnonzero(null):
+            want[comp == c] -= want[comp == c].mean()
+        check.project(vec)
+        assert check.whole == (null.size == 1) and np.allclose(vec.getArray(), want, atol=1e-12)
