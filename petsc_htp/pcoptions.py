@@ -91,9 +91,9 @@ MULTILEVEL_HELP = (    # read by petsc_htp.multilevel.setup.MultilevelPC (with P
     ("max_levels", "int", 12, "levels at most, the coarsest included"),
     ("jacobi", "real", 1.4, "the coarse vectors' Jacobi step, over the Gershgorin bound of D^-1 A"),
     ("damping", "real", 1.5, "the largest eigenvalue of s M^-1 A the smoothers' Richardson scale s takes, in (0, 2) "
-     "(M: D, or the leaf blocks)"),
-    ("smoother", "string", "auto", "jacobi (D^-1) or leaves (the leaf blocks' exact solves); auto: jacobi on a 2-D "
-     "graph, else leaves"),
+     "(M: D, or the leaf blocks; Gauss-Seidel unscaled)"),
+    ("smoother", "string", "auto", "gs (a Gauss-Seidel sweep of each rank's rows, forward down, backward up), "
+     "jacobi (D^-1) or leaves (the leaf blocks' exact solves); auto: gs on a 2-D graph, else leaves"),
     ("reorder", "bool", "auto", "each rank's rows in their leaves' order; auto: where some rank's rows are not "
      "numbered locally"))
 

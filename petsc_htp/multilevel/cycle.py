@@ -8,12 +8,12 @@ of the levels' options, each level's up smoother is a KSP of its own sharing the
 the down one starts from zero and needs no product with A; any ``mg_levels_`` option of the user's makes one KSP serve
 both ways, as PCMG's default, so that it reaches both.
 
-Two smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``jacobi``, one Richardson step with D^-1 (no factor, no
+Three smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``gs``, one Gauss-Seidel sweep of each rank's rows
+(PCSOR), forward down and backward up, unscaled; ``jacobi``, one Richardson step with D^-1 (no factor, no
 leaf-block matrix: the levels' options of the user's then act on the level's operator); ``leaves``, one with the
-exact solves of the level's leaf blocks; both scaled by Lanczos (the finest level's Jacobi step by its Gershgorin
-bound where that is at most :data:`DOMINANT`). On 2-D graphs Jacobi costs less for the same
-iterations (the smoothed coarse vectors carry what the leaf solves added), in 3-D the leaf solves take fewer (see
-:func:`default_smoother`).
+exact solves of the level's leaf blocks; these two scaled by Lanczos (the finest level's Jacobi step by its
+Gershgorin bound where that is at most :data:`DOMINANT`). On 2-D graphs Gauss-Seidel takes the fewest iterations
+for the work, in 3-D the leaf solves (see :func:`default_smoother`).
 """
 from __future__ import annotations
 
@@ -31,8 +31,9 @@ DOMINANT = 2.0 * SAFETY  # the finest level's Gershgorin bound of D^-1 A up to w
 COARSE_BAND = 4_000_000  # most values (rows x (bandwidth + 1)) of a coarsest operator's band that LAPACK's banded
 # Cholesky factors in place of the sparse LU (32 MB; see banded)
 SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"}
-SMOOTHERS = ("jacobi", "leaves")
+SMOOTHERS = ("jacobi", "leaves", "gs")
 DIAGONAL = {"pc_type": "jacobi"}
+SWEEPS = ({"pc_type": "sor", "pc_sor_local_forward": ""}, {"pc_type": "sor", "pc_sor_local_backward": ""})
 LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},
               2: {"pc_type": "bjacobi", "sub_pc_type": "cholesky", "sub_pc_factor_mat_ordering_type": "natural",
                   "sub_pc_factor_shift_type": "nonzero"}}
@@ -43,18 +44,20 @@ COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_ty
 
 
 def default_smoother(dim) -> str:
-    """The smoother for a graph of dimension ``dim``: Jacobi in 2-D (one rank, CG to 1e-8, setup + solve ms against
-    the leaf solves', 2026-11-28: 1 048 576 rows dmda2d 2 208 / 2 908, lognormal 1 960 / 2 387, free_surface
-    1 578 / 1 928, neumann 2 540 / 2 828, the same iterations +-1), the leaf solves otherwise (262 144 rows, fem_tet
-    58 against 34 iterations, 4.9 / 5.0 s; dmda3d level)."""
-    return "jacobi" if dim == 2 else "leaves"
+    """The smoother for a graph of dimension ``dim``: Gauss-Seidel in 2-D, a forward sweep down and a backward one up
+    (the V-cycle stays symmetric; no eigenvalue estimate): fewer iterations than Jacobi for as much work a step (one
+    rank, CG to 1e-8, setup + solve ms, 2026-11-28: 65 536 rows dmda2d 130 against 190 (14 against 17 iterations),
+    lognormal 100 / 128 (13 / 15), free_surface 88 / 160 (11 / 14), neumann 173 / 197 (11 / 14); 1 048 576 rows
+    dmda2d 2 075 / 2 215 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M 2 208 / 2 908 ms); the leaf solves
+    otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35)."""
+    return "gs" if dim == 2 else "leaves"
 
 
 def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None) -> dict:
     """The PCMG's defaults under ``prefix`` on ``ranks`` (1, or 2 for several) with ``smoother`` (one of
     :data:`SMOOTHERS`), the coarse LU's where ``lu`` (else only KSPPREONLY: the banded factor's PC is set apart):
     PCMG's distinct up smoothers unless the user set a levels' option."""
-    solve = DIAGONAL if smoother == "jacobi" else LEAF_SOLVE[ranks]
+    solve = DIAGONAL if smoother == "jacobi" else SWEEPS[0] if smoother == "gs" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()}
     out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items() if lu or k == "ksp_type"})
     if not (users_levels(prefix) if theirs is None else theirs):
@@ -109,7 +112,11 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
                 down.setOperators(mine.A, B)
                 down.setFromOptions()
                 if up.handle != down.handle:                    # distinct: the same step, from x, on down's PC
-                    up.setPC(down.getPC())
+                    if smoother == "gs":                        # ... or the backward sweep, its own
+                        with scoped(up.getOptionsPrefix(), SWEEPS[1]):
+                            up.getPC().setFromOptions()
+                    else:
+                        up.setPC(down.getPC())
                     up.setOperators(mine.A, B)
                     up.setType(PETSc.KSP.Type.RICHARDSON)
                     up.setTolerances(max_it=1)
@@ -191,6 +198,8 @@ def described(pc, scales, damping) -> str:
     scaled = ", ".join(f"{s:.2f}" for s in scales) or "-"
     if kind != PETSc.KSP.Type.RICHARDSON:
         return f"{kind} (the user's options), scaled {scaled}"
+    if solve == PETSc.PC.Type.SOR and pc.getMGSmootherUp(1).handle != ksp.handle:
+        return "one Gauss-Seidel sweep of each rank's rows (PCSOR), forward down and backward up, unscaled"
     if solve == PETSc.PC.Type.JACOBI:
         what, op = "D^-1 (Jacobi)", "D^-1 A"
     elif P.handle != A.handle:                              # the leaf-block matrix
@@ -228,7 +237,7 @@ def _damped(pc, level, damping, bound=None) -> Scale:
     times SAFETY lies about as high (the 2-D DMDA's 1.92 x 1.1; the finest operator's diagonal is positive:
     :mod:`..validation`)."""
     smoother = pc.getMGSmootherDown(level)
-    if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
+    if smoother.getType() != PETSc.KSP.Type.RICHARDSON or smoother.getPC().getType() == PETSc.PC.Type.SOR:
         return Scale(1.0)
     generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
     if PETSc.Options().hasName(generic):                   # the user's, for every level: no estimate

@@ -88,8 +88,20 @@ def galerkin(mat, A, ghosts, W_rows, W, first, k):
         AW = A @ W_rows
     C = W_rows.T.tocsr() @ AW
     C.sort_indices()
-    C = _summed(C, first, k, mat.getComm())
+    C = _unit_empty_rows(_summed(C, first, k, mat.getComm()), first)
     return aij(mat.getComm(), ((k, K), (k, K)), *split(C, first, first + k))
+
+
+def _unit_empty_rows(C, first) -> sp.csr_matrix:
+    """``C`` (rows ``first``... of a Galerkin operator, global columns) with a 1 on the diagonal of each row left
+    empty: a coarse vector A annihilates (a null pair of rows, its leaf constant) couples to nothing, and so stands
+    alone, where the smoothers' sweeps (PCSOR) need each diagonal entry (PCJacobi took a zero one for 1)."""
+    empty = np.flatnonzero(np.diff(C.indptr) == 0)
+    if not empty.size:
+        return C
+    C = (C + sp.csr_matrix((np.ones(empty.size), (empty, empty + first)), shape=C.shape)).tocsr()
+    C.sort_indices()
+    return C
 
 
 def _rows_of(W, rows) -> sp.csr_matrix:
