@@ -11,29 +11,40 @@ from ..twolevel.blocksize import block_size
 from ..twolevel.csr import row_entries
 from ..twolevel.graphshape import hub_rows
 
-MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (one rank, single solves, CG to 1e-8,
-# setup + solve ms, two-level against multilevel with its Jacobi smoother, 2026-11-28: 32 768 rows dmda2d 100 / 64,
-# lognormal 76 / 52, fem_tri 132 / 111, neumann 78 / 92; 65 536 rows dmda2d 186 / 107, free_surface 105 / 72,
-# lognormal 144 / 99, neumann 174 / 136, fem_tri 266 / 246; 16 384 rows level within 10 %; 3-D: the Galerkin
-# products of the smoothed coarse vectors cost more than the levels save, dmda3d at 1M 4.0 / 6.3 s)
+MIN_ROWS = 16_000       # rows from which the V-cycles serve a bare 2-D graph numbered locally (one rank, single
+# solves, CG to 1e-8, setup + solve ms, the least of 4, two-level against multilevel with its Gauss-Seidel smoother,
+# 2026-11-28: 16 384 rows dmda2d 58 / 40, lognormal 54 / 33, neumann 66 / 49; 32 768 rows dmda2d 162 / 74,
+# free_surface 90 / 58, lognormal 115 / 66, neumann 103 / 68; with the Jacobi smoother 16 384 rows had been level;
+# below about 12 500 rows the band takes a 2-D grid; 3-D: the Galerkin products of the smoothed coarse vectors cost
+# more than the levels save, dmda3d at 1M 4.0 / 6.3 s)
+REORDER_MIN_ROWS = 30_000   # ... and numbered at random, its rows then taken in their leaves' order (P1 triangles:
+# 16 384 rows 93 / 120, 32 768 rows 247 / 233)
 DIM = 2
 SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 
 
-def serves(mat, rows, shape) -> str:
-    """Why the V-cycles serve ``mat`` (this rank's ``rows``; ``shape()`` gives its diagonal block's
-    :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' (collective): at
-    least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph on some rank and rows in a local
-    order (:func:`local_order`, on every rank)."""
+def serves(mat, rows, shape) -> tuple:
+    """(why the V-cycles serve ``mat`` (this rank's ``rows``; ``shape()`` gives its diagonal block's
+    :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' | whether its rows are
+    to be taken in their leaves' order) (collective): at
+    least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph on some rank and, on several ranks,
+    rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered at random in their
+    leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's, 2026-11-28: 1 048 576
+    rows 9 078 / 14 542 (18 / 38 iterations), 262 144 rows 1 394 / 1 780 (17 / 37), a sequence frame there
+    1 727 / 1 508 (27-31 / 57); 65 536 rows 382-444 / 469-667 (16 / 34), a sequence frame 332-429 / 321-389
+    (24-27 / 50-57)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level method 0.34)."""
     n = mat.getSize()[0]
-    if n < MIN_ROWS or unscalar(mat, rows):
-        return ""
-    if dimension(mat, rows, shape) != DIM or Collective(mat.getComm()).any(
-            not local_order(rows, mat.getOwnershipRange()[0])):
-        return ""
+    if n < MIN_ROWS or unscalar(mat, rows) or dimension(mat, rows, shape) != DIM:
+        return "", False
+    coll = Collective(mat.getComm())
+    local = not coll.any(not local_order(rows, mat.getOwnershipRange()[0]))
+    least = MIN_ROWS if local else REORDER_MIN_ROWS
+    if n < least or (coll.size > 1 and not local):
+        return "", False
     return (f"multilevel V-cycles in place of the two-level method (by the problem: a bare 2-D graph of {n} rows, at "
-            f"least {MIN_ROWS}; -htp_variant twolevel keeps the two-level method)")
+            f"least {least}{'' if local else ' numbered at random'}; -htp_variant twolevel keeps the two-level "
+            "method)"), not local
 
 
 def unscalar(mat, rows, option=0) -> str:
@@ -65,7 +76,8 @@ def local_order(rows, start) -> bool:
     """Whether coupled rows lie near each other in the numbering (every rank's sampled entries: the median |i - j|
     at most :data:`SPAN` sqrt(n)): the levels keep the rows' order, so a mesh numbered at random makes every product
     a random walk through memory (P1 triangles at 1M rows numbered at random: median |i - j| 247 331, V-cycles
-    7.7 s against the two-level method's 5.4; the 2-D DMDA: 1)."""
+    7.7 s against the two-level method's 5.4, before the levels took the rows in their leaves' order; the 2-D DMDA:
+    1)."""
     n = rows.shape[0]
     pick = np.linspace(0, n - 1, min(n, SAMPLE_ROWS)).astype(np.int64) if n else np.zeros(0, dtype=np.int64)
     where, which = row_entries(rows.indptr, pick)
