@@ -109,7 +109,7 @@ class TwoLevel:
     def composed(self, mat, A, coords):
         """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`), or
         with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a bare 2-D
-        graph of at least ``MIN_ROWS`` rows in a local order, on one rank ``REORDER_MIN_ROWS`` in any order) the
+        graph of at least ``MIN_ROWS`` rows, in a local order on several ranks) the
         multilevel V-cycles, :attr:`note` saying so."""
         if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
             from petsc4py import PETSc

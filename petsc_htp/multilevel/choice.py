@@ -11,14 +11,14 @@ from ..twolevel.blocksize import block_size
 from ..twolevel.csr import row_entries
 from ..twolevel.graphshape import hub_rows
 
-MIN_ROWS = 16_000       # rows from which the V-cycles serve a bare 2-D graph numbered locally (one rank, single
-# solves, CG to 1e-8, setup + solve ms, the least of 4, two-level against multilevel with its Gauss-Seidel smoother,
-# 2026-11-28: 16 384 rows dmda2d 58 / 40, lognormal 54 / 33, neumann 66 / 49; 32 768 rows dmda2d 162 / 74,
-# free_surface 90 / 58, lognormal 115 / 66, neumann 103 / 68; with the Jacobi smoother 16 384 rows had been level;
-# below about 12 500 rows the band takes a 2-D grid; 3-D: the Galerkin products of the smoothed coarse vectors cost
-# more than the levels save, dmda3d at 1M 4.0 / 6.3 s)
-REORDER_MIN_ROWS = 30_000   # ... and numbered at random, its rows then taken in their leaves' order (P1 triangles:
-# 16 384 rows 93 / 120, 32 768 rows 247 / 233)
+MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (one rank, single solves, CG to 1e-8,
+# setup + solve ms, two-level against multilevel with its Jacobi smoother, 2026-11-28: 32 768 rows dmda2d 100 / 64,
+# lognormal 76 / 52, fem_tri 132 / 111, neumann 78 / 92; 65 536 rows dmda2d 186 / 107, free_surface 105 / 72,
+# lognormal 144 / 99, neumann 174 / 136, fem_tri 266 / 246; 16 384 rows level within 10 %, and with Gauss-Seidel
+# 40-25 % less on the DMDA, log-normal and Neumann cases, but a random field of 1e4 edges (a fifth of them) took 71
+# CG iterations there against the two-level method's 21, as at 65 536 rows 103 against 22 (as pyamg's smoothed
+# aggregation, 100; AMGCL 661); 3-D: the Galerkin products of the smoothed coarse vectors cost more than the levels
+# save, dmda3d at 1M 4.0 / 6.3 s)
 DIM = 2
 SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
@@ -39,24 +39,28 @@ def serves(mat, rows, shape) -> tuple:
         return "", False
     coll = Collective(mat.getComm())
     local = not coll.any(not local_order(rows, mat.getOwnershipRange()[0]))
-    least = MIN_ROWS if local else REORDER_MIN_ROWS
-    if n < least or (coll.size > 1 and not local):
+    if coll.size > 1 and not local:
         return "", False
+    order = "" if local else ", numbered at random: its rows taken in their leaves' order"
     return (f"multilevel V-cycles in place of the two-level method (by the problem: a bare 2-D graph of {n} rows, at "
-            f"least {least}{'' if local else ' numbered at random'}; -htp_variant twolevel keeps the two-level "
-            "method)"), not local
+            f"least {MIN_ROWS}{order}; -htp_variant twolevel keeps the two-level method)"), not local
 
 
 def unscalar(mat, rows, option=0) -> str:
     """What keeps the V-cycles, whose coarse vectors are constants, from ``mat`` (this rank's ``rows``), or ''
-    (collective): a near null space of its own, a block size (``-htp_block_size``, ``option``, where set; else the
-    Mat's or its pattern's: :mod:`..twolevel.blocksize`, elasticity handed over as a plain AIJ), or a dense row
+    (collective): a near null space of its own, a null space of vectors (D A D's null vector D^-1 1 at 22 500 rows:
+    251 CG iterations, where the two-level method takes that vector into its coarse space), a block size
+    (``-htp_block_size``, ``option``, where set; else the Mat's or its pattern's: :mod:`..twolevel.blocksize`,
+    elasticity handed over as a plain AIJ), or a dense row
     (:func:`..twolevel.graphshape.hub_rows`, more than sqrt(N) entries: a constraint's or a ground node's), which
     the smoothed coarse vectors spread into dense Galerkin operators (three hubs each coupled to 8 000 of a 200^2
     grid's rows: 354 s)."""
     coll = Collective(mat.getComm())
     if nearnull.attached(mat):
         return "the Mat's near null space"
+    null = mat.getNullSpace()
+    if null.handle and null.getVecs():
+        return "a null space of vectors (the coarse vectors are constants)"
     bs, source = block_size(mat, rows, coll, option)
     if bs > 1:
         return f"block size {bs} ({source})"
