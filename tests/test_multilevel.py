@@ -473,11 +473,12 @@ def test_the_hierarchy_finds_the_coarse_rows_of_null_components_and_spares_the_s
     mat.destroy()
 
 
-@pytest.mark.parametrize("smoother", ["jacobi", "leaves"])
+@pytest.mark.parametrize("smoother", ["gs", "jacobi", "leaves"])
 def test_the_v_cycle_runs_on_the_operator_without_its_null_space(smoother):
     """The smoothers' KSPs do not project their right-hand sides on the user's null space (a copy, a sum and a shift
     each, a third of PCMG's time on a Neumann square): its remove function runs only for the outer KSP's own
-    projections, about twice an iteration, and the null space is attached again after every application."""
+    projections, about twice an iteration, and the null space is attached again after every application, a
+    transpose null space of the user's own too."""
     A, b = CASES["neumann"](16384, 0)
     calls = []
     null = PETSc.NullSpace().create(constant=True, comm=PETSc.COMM_SELF)
@@ -490,6 +491,44 @@ def test_the_v_cycle_runs_on_the_operator_without_its_null_space(smoother):
     assert reason > 0 and relres <= 1e-8 and its <= 20, (reason, its, relres)
     assert mat.getNullSpace().handle == null.handle
     assert len(calls) <= 2 * its + 4, (len(calls), its)
+    own = PETSc.NullSpace().create(constant=True, comm=PETSc.COMM_SELF)
+    mat.setTransposeNullSpace(own)
+    with cycle.bare(mat):
+        assert not mat.getNullSpace().handle
+    assert mat.getNullSpace().handle == null.handle and mat.getTransposeNullSpace().handle == own.handle
+
+
+def test_gauss_seidel_sweeps_both_ways_under_a_levels_option_of_the_users():
+    """A levels' option of the user's (here the Richardson step restated) leaves the up smoother under the down one's
+    prefix: Gauss-Seidel then sweeps forward and backward each time (PCSOR's own default), so that the V-cycle stays
+    symmetric and CG converges as with the sweeps split, and the view says so."""
+    A, b = CASES["dmda2d"](16384, 0)
+    split = solve(A, b, htp_variant="multilevel", htp_ml_coarse_max=1000)
+    both = solve(A, b, htp_variant="multilevel", htp_ml_coarse_max=1000, htp_ml_mg_levels_ksp_type="richardson")
+    assert "forward down and backward up" in lines(split[3]) and "both ways (the user's options)" in lines(both[3])
+    assert both[0] > 0 and both[2] <= 1e-8 and both[1] <= split[1] + 2, (both[:3], split[:3])
+    for obj in (split[3], split[4], both[3], both[4]):
+        obj.destroy()
+
+
+def test_a_null_space_other_than_the_constant_keeps_the_two_level_method():
+    """unscalar refuses a null space of vectors other than the constant (the coarse vectors are constants) and takes
+    PETSc's constant flag or a user's vector of ones as the constant."""
+    from petsc_htp.multilevel import choice
+
+    A = CASES["neumann"](4096, 0)[0]
+    mat = _mat(A)
+    with local_rows(mat) as rows:
+        assert choice.unscalar(mat, rows) == ""
+        for values, refused in ((1.0, False), (np.linspace(1.0, 2.0, A.shape[0]), True)):
+            vec = mat.createVecRight()
+            vec.array[:] = values
+            vec.normalize()
+            mat.setNullSpace(PETSc.NullSpace().create(vectors=[vec], comm=PETSc.COMM_SELF))
+            assert bool(choice.unscalar(mat, rows)) == refused
+        mat.setNullSpace(PETSc.NullSpace().create(constant=True, comm=PETSc.COMM_SELF))
+        assert choice.unscalar(mat, rows) == ""
+    mat.destroy()
 
 
 def test_the_range_projection_takes_each_null_components_mean_and_the_whole_ones_alone():

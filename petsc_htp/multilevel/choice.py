@@ -58,15 +58,27 @@ def unscalar(mat, rows, option=0) -> str:
     coll = Collective(mat.getComm())
     if nearnull.attached(mat):
         return "the Mat's near null space"
-    null = mat.getNullSpace()
-    if null.handle and null.getVecs():
-        return "a null space of vectors (the coarse vectors are constants)"
+    if not constant_null(mat):
+        return "a null space of vectors other than the constant (the coarse vectors are constants)"
     bs, source = block_size(mat, rows, coll, option)
     if bs > 1:
         return f"block size {bs} ({source})"
     if coll.any(hub_rows(rows.indptr, mat.getSize()[0] ** 0.5).any()):
         return "a dense row (its couplings would fill every coarse level)"
     return ""
+
+
+def constant_null(mat) -> bool:
+    """Whether ``mat``'s null space, where attached, is the constant: PETSc's flag, or one vector whose entries agree
+    to 1e-12 of their largest (a user's vector of ones; collective)."""
+    null = mat.getNullSpace()
+    vecs = null.getVecs() if null.handle else []
+    if not vecs:
+        return True
+    if len(vecs) > 1 or null.hasConstant():
+        return False
+    low, high = vecs[0].min()[1], vecs[0].max()[1]
+    return high - low <= 1e-12 * max(abs(low), abs(high))
 
 
 def dimension(mat, rows, shape) -> int:

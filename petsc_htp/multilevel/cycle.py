@@ -5,8 +5,8 @@ Options under ``<prefix>`` (HTPPC's ``-htp_ml_``) are PCMG's own: ``-htp_ml_pc_m
 sit in the options database (under the generic ``mg_levels_``, which PETSc reads for every level) for the whole
 set-up, so that PCBJACOBI's blocks and PCREDUNDANT's inner LU, made at set-up, find theirs. Where the user sets none
 of the levels' options, each level's up smoother is a KSP of its own sharing the down one's PC (one factor), so that
-the down one starts from zero and needs no product with A; any ``mg_levels_`` option of the user's makes one KSP serve
-both ways, as PCMG's default, so that it reaches both.
+the down one starts from zero and needs no product with A; any ``mg_levels_`` option of the user's leaves the up
+smoother under the down one's prefix, so that it reaches both (Gauss-Seidel then sweeps both ways each time).
 
 Three smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``gs``, one Gauss-Seidel sweep of each rank's rows
 (PCSOR), forward down and backward up, unscaled; ``jacobi``, one Richardson step with D^-1 (no factor, no
@@ -34,6 +34,7 @@ SMOOTHER = {"ksp_type": "richardson", "ksp_max_it": "1", "ksp_norm_type": "none"
 SMOOTHERS = ("jacobi", "leaves", "gs")
 DIAGONAL = {"pc_type": "jacobi"}
 SWEEPS = ({"pc_type": "sor", "pc_sor_local_forward": ""}, {"pc_type": "sor", "pc_sor_local_backward": ""})
+SYMMETRIC_SWEEP = {"pc_type": "sor"}    # PCSOR's own default: the forward sweep then the backward one, each way
 LEAF_SOLVE = {1: {"pc_type": "cholesky", "pc_factor_mat_ordering_type": "natural", "pc_factor_shift_type": "nonzero"},
               2: {"pc_type": "bjacobi", "sub_pc_type": "cholesky", "sub_pc_factor_mat_ordering_type": "natural",
                   "sub_pc_factor_shift_type": "nonzero"}}
@@ -56,11 +57,14 @@ def default_smoother(dim) -> str:
 def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None) -> dict:
     """The PCMG's defaults under ``prefix`` on ``ranks`` (1, or 2 for several) with ``smoother`` (one of
     :data:`SMOOTHERS`), the coarse LU's where ``lu`` (else only KSPPREONLY: the banded factor's PC is set apart):
-    PCMG's distinct up smoothers unless the user set a levels' option."""
-    solve = DIAGONAL if smoother == "jacobi" else SWEEPS[0] if smoother == "gs" else LEAF_SOLVE[ranks]
+    PCMG's distinct up smoothers unless the user set a levels' option (Gauss-Seidel then sweeps both ways each time,
+    so that the V-cycle stays symmetric)."""
+    theirs = users_levels(prefix) if theirs is None else theirs
+    sweep = SYMMETRIC_SWEEP if theirs else SWEEPS[0]
+    solve = DIAGONAL if smoother == "jacobi" else sweep if smoother == "gs" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()}
     out.update({"mg_coarse_" + k: v for k, v in COARSE[ranks].items() if lu or k == "ksp_type"})
-    if not (users_levels(prefix) if theirs is None else theirs):
+    if not theirs:
         out["pc_mg_distinct_smoothup"] = "true"
     return out
 
@@ -112,7 +116,7 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
                 down.setOperators(mine.A, B)
                 down.setFromOptions()
                 if up.handle != down.handle:                    # distinct: the same step, from x, on down's PC
-                    if smoother == "gs":                        # ... or the backward sweep, its own
+                    if smoother == "gs" and not theirs:         # ... or the backward sweep, its own
                         with scoped(up.getOptionsPrefix(), SWEEPS[1]):
                             up.getPC().setFromOptions()
                     else:
@@ -137,17 +141,20 @@ def bare(A):
     """``A`` with its null space detached while the V-cycle runs: each smoother's KSPSolve would project its
     right-hand side on it, and on the transpose null space a symmetric matrix takes from it (a copy, a sum and a
     shift a step; PCMG's application on the bare Neumann square of 65 536 rows took 5.4 ms so, 3.6 without). The
-    outer KSP projects M's output and the coarsest factor is grounded; a transpose null space of the user's own
-    stays (PETSc shows no difference between it and the one taken)."""
+    outer KSP projects M's output and the coarsest factor is grounded. Both are attached again after, a transpose null
+    space other than the null space as it was (MatSetNullSpace sets the transpose one too on a symmetric matrix)."""
     null = A.getNullSpace()
     if not null.handle:
         yield A
         return
+    transpose = A.getTransposeNullSpace()
     A.setNullSpace(PETSc.NullSpace())
     try:
         yield A
     finally:
         A.setNullSpace(null)
+        if transpose.handle and transpose.handle != null.handle:
+            A.setTransposeNullSpace(transpose)
 
 
 def banded(A, ground=None):
@@ -198,8 +205,10 @@ def described(pc, scales, damping) -> str:
     scaled = ", ".join(f"{s:.2f}" for s in scales) or "-"
     if kind != PETSc.KSP.Type.RICHARDSON:
         return f"{kind} (the user's options), scaled {scaled}"
-    if solve == PETSc.PC.Type.SOR and pc.getMGSmootherUp(1).handle != ksp.handle:
-        return "one Gauss-Seidel sweep of each rank's rows (PCSOR), forward down and backward up, unscaled"
+    if solve == PETSc.PC.Type.SOR:
+        if pc.getMGSmootherUp(1).getPC().handle != ksp.getPC().handle:
+            return "one Gauss-Seidel sweep of each rank's rows (PCSOR), forward down and backward up, unscaled"
+        return f"PCSOR of each rank's rows both ways (the user's options), scaled {scaled}"
     if solve == PETSc.PC.Type.JACOBI:
         what, op = "D^-1 (Jacobi)", "D^-1 A"
     elif P.handle != A.handle:                              # the leaf-block matrix
@@ -217,7 +226,7 @@ def described(pc, scales, damping) -> str:
 
 class Scale(float):
     """A smoother's Richardson scale, :attr:`by` naming what gave the eigenvalue it takes to the damping: 'Gershgorin',
-    'Lanczos', or '' (the user's scale)."""
+    'Lanczos', 'sweep' (Gauss-Seidel's, unscaled) or '' (the user's scale)."""
 
     def __new__(cls, value, by=""):
         scale = super().__new__(cls, value)
@@ -237,11 +246,13 @@ def _damped(pc, level, damping, bound=None) -> Scale:
     times SAFETY lies about as high (the 2-D DMDA's 1.92 x 1.1; the finest operator's diagonal is positive:
     :mod:`..validation`)."""
     smoother = pc.getMGSmootherDown(level)
-    if smoother.getType() != PETSc.KSP.Type.RICHARDSON or smoother.getPC().getType() == PETSc.PC.Type.SOR:
+    if smoother.getType() != PETSc.KSP.Type.RICHARDSON:
         return Scale(1.0)
     generic = pc.getOptionsPrefix() + "mg_levels_ksp_richardson_scale"
     if PETSc.Options().hasName(generic):                   # the user's, for every level: no estimate
         return Scale(PETSc.Options().getReal(generic))
+    if smoother.getPC().getType() == PETSc.PC.Type.SOR:     # Gauss-Seidel's sweeps: unscaled
+        return Scale(1.0, "sweep")
     bounded = bound is not None and bound <= DOMINANT and smoother.getPC().getType() == PETSc.PC.Type.JACOBI
     top = bound if bounded else _largest(smoother)
     scale = min(1.0, damping / top) if top > 0 else 1.0
