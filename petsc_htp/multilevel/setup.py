@@ -156,8 +156,7 @@ class MultilevelPC:
             null.project(y)
 
     def presolve(self, ksp, b, x, stale=False):
-        """A named error where b holds a part along null constants the row sums show (:mod:`.ranges`); no start: the
-        KSP's own guess."""
+        """A named error where b holds a part along null constants the row sums show (:mod:`.ranges`); no start."""
         if self.range is not None:
             self.range.check(ksp, b)
         return None
@@ -180,9 +179,8 @@ class MultilevelPC:
 
     @property
     def nbytes(self) -> int:
-        """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, every level's leaf
-        blocks (where made), coarse space and coarse operator, the smoothers' factors (the leaf solves') and the
-        coarse factor (the banded one, gathered on every rank, counted; PCREDUNDANT's gathered LU not)."""
+        """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, each level's leaf blocks,
+        W and E, the leaf solves' factors and the coarse factor (the band counted, PCREDUNDANT's gathered LU not)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
             mats += [m for m in (level.B, level.W) if m is not None]

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 petsc4py.init(sys.argv[:1])
 from petsc4py import PETSc  # noqa: E402
 
-import petsc_htp  # noqa: E402
+from petsc_htp.onesolve import solve_once  # noqa: E402
 
 side, share, contrast = int(sys.argv[1]), float(sys.argv[2]), float(sys.argv[3])
 rng = np.random.default_rng(2)
@@ -26,24 +26,18 @@ A = A.tocsr()
 A.sort_indices()
 b = np.random.default_rng(3).standard_normal(side * side)
 out = []
+db = PETSc.Options()
+for name, value in (("ksp_type", "cg"), ("ksp_norm_type", "unpreconditioned"), ("ksp_rtol", "1e-8"),
+                    ("ksp_max_it", "2000"), ("pc_type", "python"), ("pc_python_type", "petsc_htp.HTPPC")):
+    db[name] = value
 for variant in ("twolevel", "multilevel"):
-    PETSc.Options()["htp_variant"] = variant
+    db["htp_variant"] = variant
     mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data))
     rhs = mat.createVecLeft()
     rhs.array[:] = b
-    x = rhs.duplicate()
-    ksp = PETSc.KSP().create()
-    ksp.setOperators(mat)
-    ksp.setType("cg")
-    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-    ksp.setTolerances(rtol=1e-8, max_it=2000)
-    ksp.getPC().setType("python")
-    ksp.getPC().setPythonContext(petsc_htp.HTPPC())
-    ksp.setFromOptions()
-    ksp.solve(rhs, x)
-    out.append(f"HTPPC {variant} {ksp.getIterationNumber()}")
-    for obj in (ksp, mat, rhs, x):
-        obj.destroy()
+    out.append(f"HTPPC {variant} {solve_once(mat, rhs)[0]}")
+    mat.destroy()
+    rhs.destroy()
 del PETSc.Options()["htp_variant"]
 import pyamg  # noqa: E402
 
