@@ -16,8 +16,8 @@ MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (o
 # lognormal 76 / 52, fem_tri 132 / 111, neumann 78 / 92; 65 536 rows dmda2d 186 / 107, free_surface 105 / 72,
 # lognormal 144 / 99, neumann 174 / 136, fem_tri 266 / 246; 16 384 rows level within 10 %, and with Gauss-Seidel
 # 40-25 % less on the DMDA, log-normal and Neumann cases, but a random field of 1e4 edges (a fifth of them) took 71
-# CG iterations there against the two-level method's 21, as at 65 536 rows 103 against 22 (as pyamg's smoothed
-# aggregation, 100; AMGCL 661); 3-D: the Galerkin products of the smoothed coarse vectors cost more than the levels
+# CG iterations there against the two-level method's 21, as at 65 536 rows 103 against 22 (pyamg's smoothed
+# aggregation 361, AMGCL 669: results/gs-20261128/salt.txt); 3-D: the Galerkin products of the smoothed coarse vectors cost more than the levels
 # save, dmda3d at 1M 4.0 / 6.3 s)
 DIM = 2
 SPAN = 4.0              # see local_order
@@ -30,10 +30,10 @@ def serves(mat, rows, shape) -> tuple:
     to be taken in their leaves' order) (collective): at
     least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph on some rank and, on several ranks,
     rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered at random in their
-    leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's, 2026-11-28: 1 048 576
-    rows 9 078 / 14 542 (18 / 38 iterations), 262 144 rows 1 394 / 1 780 (17 / 37), a sequence frame there
-    1 727 / 1 508 (27-31 / 57); 65 536 rows 382-444 / 469-667 (16 / 34), a sequence frame 332-429 / 321-389
-    (24-27 / 50-57)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level method 0.34)."""
+    leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's, 2026-11-28,
+    results/gs-20261128/run.txt: 1 048 576 rows 9 763 / 19 512 (18 / 38 iterations), 262 144 rows 1 620 / 2 947
+    (17 / 37), 65 536 rows 412 / 465 (16 / 34); a sequence frame at 65 536 rows 339-385 / 335-359 (24-27 / 50-57,
+    frames65536.txt)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level method 0.34)."""
     n = mat.getSize()[0]
     if n < MIN_ROWS or unscalar(mat, rows) or dimension(mat, rows, shape) != DIM:
         return "", False

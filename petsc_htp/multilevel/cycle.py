@@ -46,10 +46,12 @@ COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_ty
 
 def default_smoother(dim) -> str:
     """The smoother for a graph of dimension ``dim``: Gauss-Seidel in 2-D, a forward sweep down and a backward one up
-    (the V-cycle stays symmetric; no eigenvalue estimate): fewer iterations than Jacobi for as much work a step (one
-    rank, CG to 1e-8, setup + solve ms, 2026-11-28: 65 536 rows dmda2d 130 against 190 (14 against 17 iterations),
-    lognormal 100 / 128 (13 / 15), free_surface 88 / 160 (11 / 14), neumann 173 / 197 (11 / 14); 1 048 576 rows
-    dmda2d 2 075 / 2 215 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M 2 208 / 2 908 ms); the leaf solves
+    (the V-cycle stays symmetric; no eigenvalue estimate): fewer iterations than Jacobi, a sweep costing somewhat
+    more than its step (one rank, CG to 1e-8, setup + solve ms over three runs in turn, 2026-11-28,
+    results/gs-20261128/run.txt: 65 536 rows dmda2d 129-155 against 132-174 (14 against 17 iterations), lognormal
+    105-192 / 112-163 (13 / 15), free_surface 90-99 / 110-140 (11 / 14), neumann 124-182 / 134-207 (11 / 14);
+    1 048 576 rows dmda2d 3 070-3 301 / 2 804-3 240 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M
+    2 208 / 2 908 ms); the leaf solves
     otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35)."""
     return "gs" if dim == 2 else "leaves"
 
