@@ -551,3 +551,35 @@ def test_the_range_projection_takes_each_null_components_mean_and_the_whole_ones
             want[comp == c] -= want[comp == c].mean()
         check.project(vec)
         assert check.whole == (null.size == 1) and np.allclose(vec.getArray(), want, atol=1e-12)
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_sealed_pockets_leave_no_null_pivot_to_the_smoothers_or_the_coarsest_factor(ranks):
+    """A closed domain holding 49 sealed pockets (null components of 9 rows each, handed over bare) converges under
+    every smoother on 1 and 2 ranks: the pockets' coarse rows, which rounding leaves at 1e-16 of their scale, are made
+    unit rows (on 2 ranks CG had stopped with DIVERGED_INDEFINITE_PC; tests/pockets_case.py)."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(ROOT / "tests" / "pockets_case.py")],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = [line.split() for line in out.stdout.splitlines()]
+    assert [line[0] for line in lines] == ["gs", "jacobi", "leaves"], out.stdout
+    for smoother, reason, its, relres in lines:
+        assert int(reason) > 0 and int(its) <= 20 and float(relres) < 1e-7, (smoother, reason, its, relres)
+
+
+def test_a_galerkin_row_within_rounding_of_its_scale_becomes_a_unit_row():
+    """Rows whose entries all lie within NULL_SHARE of their own scale (or none) are emptied, their columns' entries in
+    the rank's other rows dropped, and given a unit diagonal; the other rows are kept as they were."""
+    from petsc_htp.multilevel.galerkin import NULL_SHARE, _unit_null_rows
+
+    C = sp.csr_matrix(np.array([[4.0, -1.0, 1e-17, 0.0], [-1.0, 4.0, 0.0, 0.0], [1e-17, 0.0, -3e-16, 0.0],
+                                [0.0, 0.0, 0.0, 0.0]]))
+    scale = np.array([4.0, 4.0, 2.0, 1.0])
+    out = _unit_null_rows(C, 0, scale).toarray()
+    assert np.array_equal(out, np.array([[4.0, -1.0, 0, 0], [-1.0, 4.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]]))
+    assert _unit_null_rows(C, 0, scale * 1e-6).toarray()[2, 2] == -3e-16     # against a scale that small: kept
+    kept = _unit_null_rows(C[:2], 0, np.array([4.0, 4.0]))              # no null row: the same matrix back
+    assert (kept != C[:2]).nnz == 0
+    shifted = _unit_null_rows(sp.csr_matrix(C.toarray()[2:3]), 2, np.array([2.0]))   # a rank's rows from 2 on
+    assert shifted.toarray().tolist() == [[0.0, 0.0, 1.0, 0.0]] and NULL_SHARE < 1e-12

@@ -63,7 +63,8 @@ class Level:
         W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / self.bound)
         self.W = aij(self.A.getComm(), (self.A.getSizes()[0], (self.k, self.n_coarse)),
                      *split(W_rows, self.first, self.first + self.k))
-        self.below = galerkin.galerkin(self.A, local, self.halo.ghosts, W_rows, self.W, self.first, self.k)
+        self.below = galerkin.galerkin(self.A, local, self.halo.ghosts, W_rows, self.W, self.first, self.k,
+                                         galerkin.leaf_scales(self.column, diag, self.k))
 
     def refresh(self, rows=None):
         """The leaf-block matrix (where held), the smoothed coarse vectors and a new :attr:`below` from the operator's
