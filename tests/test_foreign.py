@@ -1148,6 +1148,36 @@ def test_a_row_scaled_operator_takes_scaled_piece_vectors(ranks):
         assert ("pieces take |diag|^-1/2 in place of their constants" in proc.stdout) == scaled, proc.stdout
 
 
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_row_scaled_operator_weights_the_v_cycles_leaf_vectors(ranks):
+    """examples/dmda_poisson.py -scale_rows 2 at 200^2 (the V-cycles' size): the finest leaf vectors take
+    |diag|^-1/2 (CG had taken 686-776 iterations at 256^2 on the leaf constants), the unscaled operator keeps its
+    constants."""
+    for flags, scaled in ((("-scale_rows", "2"), True), ((), False)):
+        proc = _mpirun(ranks, EXAMPLE, "-n", "200", "-contrast", "1", *flags, *HTPPC_FLAGS)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        its = int(proc.stdout.split("iterations:")[1].split()[0])
+        relres = float(proc.stdout.split("||b - A x|| / ||b||:")[1].split()[0])
+        assert its <= 30 and relres <= 1.01e-8 and "multilevel V-cycles" in proc.stdout, proc.stdout
+        assert ("leaf constants weighted by |diag|^-1/2" in proc.stdout) == scaled, proc.stdout
+
+
+def test_the_neighbours_diagonals_tell_a_row_scaling_from_coefficient_jumps():
+    """scaling.neighbours_spread: D A D (D = 10^U(-s, s), s from 0.5) passes, the foreign study's matrices (jumps,
+    Neumann, triangles, tetrahedra; a log-normal field of 4 096 rows varies enough between neighbours to pass, and the
+    quotients then keep its constants) do not; read from about SPREAD_ROWS rows and one neighbour each."""
+    from petsc_htp.collective import Collective
+    from petsc_htp.twolevel import scaling
+
+    coll = Collective(PETSc.COMM_SELF)
+    for case in ("dmda2d", "lognormal", "neumann", "fem_tri", "fem_tet"):
+        A = CASES[case](4096, 0)[0].tocsr()
+        assert scaling.neighbours_spread(A, 0, coll) == (case == "lognormal"), case
+        for s in (0.5, 2.0):
+            d = 10.0 ** np.random.default_rng(1).uniform(-s, s, A.shape[0])
+            assert scaling.neighbours_spread((sp.diags(d) @ A @ sp.diags(d)).tocsr(), 0, coll), (case, s)
+
+
 def test_scaling_quotients_tell_the_smoother_piece_vector():
     """scaling.weights: z = |diag|^-1/2 where D A D makes it far smoother than the constant; None for A itself, for
     coefficient jumps (z rough across them) and for a singular Neumann matrix (the constant's quotient is 0)."""

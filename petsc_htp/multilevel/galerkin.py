@@ -48,11 +48,12 @@ def coarse_columns(mat, halo, column):
     return np.concatenate([column, np.rint(theirs).astype(column.dtype)])
 
 
-def tentative(columns, n_coarse) -> sp.csr_matrix:
+def tentative(columns, n_coarse, weights=None) -> sp.csr_matrix:
     """W0, the leaf constants: one entry of each covered row (own rows, then ghosts: ``columns``,
-    :func:`coarse_columns`) in its leaf's coarse column; scipy CSR."""
+    :func:`coarse_columns`) in its leaf's coarse column, 1 or the row's of ``weights`` (same rows); scipy CSR."""
     covered = columns >= 0
-    return sp.csr_matrix((np.ones(int(covered.sum())), columns[covered], np.concatenate(([0], np.cumsum(covered)))),
+    values = np.ones(int(covered.sum())) if weights is None else weights[covered]
+    return sp.csr_matrix((values, columns[covered], np.concatenate(([0], np.cumsum(covered)))),
                          shape=(columns.size, n_coarse))
 
 
@@ -95,10 +96,12 @@ def galerkin(mat, A, ghosts, W_rows, W, first, k, scale):
     return aij(mat.getComm(), ((k, K), (k, K)), *split(C, first, first + k))
 
 
-def leaf_scales(column, diag, k) -> np.ndarray:
-    """Each of this rank's ``k`` coarse rows' scale: the sum of |a_ii| over its leaf's rows (``column``: each row's
-    coarse column on this rank, -1 for none; ``diag``: their diagonal), of the order of its Galerkin diagonal."""
-    return np.bincount(column + 1, np.abs(diag), minlength=k + 1)[1:]        # rows without a column counted apart
+def leaf_scales(column, diag, k, weights=None) -> np.ndarray:
+    """Each of this rank's ``k`` coarse rows' scale: the sum of w_i^2 |a_ii| over its leaf's rows (``column``: each
+    row's coarse column on this rank, -1 for none; ``diag``: their diagonal; ``weights``: W0's entries w, else 1), of
+    the order of its Galerkin diagonal."""
+    scale = np.abs(diag) if weights is None else np.square(weights[:diag.size]) * np.abs(diag)
+    return np.bincount(column + 1, scale, minlength=k + 1)[1:]        # rows without a column counted apart
 
 
 def _unit_null_rows(C, first, scale) -> sp.csr_matrix:

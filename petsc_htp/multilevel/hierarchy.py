@@ -21,12 +21,13 @@ def default_coarse_max(dim) -> int:
 class Hierarchy:
     """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last;
     ``leaf``, ``rows``: the finest level's leaves (:func:`.level.leaves`) and this rank's rows of ``A`` where already
-    found; ``blocks``: each level's leaf-block matrix made (the leaf solves' smoother)."""
+    found; ``blocks``: each level's leaf-block matrix made (the leaf solves' smoother); ``weighted``: the finest
+    level's leaf vectors weighted (:func:`.level.row_scaled`)."""
 
     def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True,
-                 rows=None):
+                 rows=None, weighted=False):
         self.levels, self.coarsest = [], A
-        self.sizes, self.jacobi, self.blocks = (coarse_max, max_levels), jacobi, blocks
+        self.sizes, self.jacobi, self.blocks, self.weighted = (coarse_max, max_levels), jacobi, blocks, weighted
         self._grow(leaf, rows)
 
     def _grow(self, leaf=None, rows=None):
@@ -35,7 +36,8 @@ class Hierarchy:
         coarse_max, max_levels = self.sizes
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
             first = not self.levels
-            level = Level(self.coarsest, self.jacobi, leaf if first else None, self.blocks, rows if first else None)
+            level = Level(self.coarsest, self.jacobi, leaf if first else None, self.blocks, rows if first else None,
+                          self.weighted and first)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.below.destroy()

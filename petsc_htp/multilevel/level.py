@@ -15,7 +15,7 @@ from petsc4py import PETSc
 
 from ..aijarrays import aij, split
 from ..collective import Collective
-from ..petscmat import diagonal_block, local_rows
+from ..petscmat import diagonal_block, ghost_values, local_rows
 from ..twolevel.aggregation import aggregates, decoupled_rows
 from ..twolevel.csr import row_sums
 from . import galerkin
@@ -30,10 +30,11 @@ class Level:
     leaves a row coupled to other ranks only: such rows share leaves, which may then join two components of ``A``),
     the leaf-block matrix ``B`` (where ``blocks``: the leaf solves' smoother; else None), the coarse space ``W`` (A's
     rows by the next level's columns) and :attr:`below`, the next level's operator W^T A W (a new Mat, the caller's);
-    ``rows``: this rank's rows of ``A`` where already read."""
+    ``rows``: this rank's rows of ``A`` where already read; ``weighted``: the leaf vectors take |a_ii|^-1/2 in place of
+    1 (a row-scaled operator: :func:`row_scaled`), from each numeric step's values."""
 
-    def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True, rows=None):
-        self.A, self.jacobi = A, jacobi
+    def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True, rows=None, weighted=False):
+        self.A, self.jacobi, self.weighted = A, jacobi, weighted
         start = A.getOwnershipRange()[0]
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
@@ -48,8 +49,8 @@ class Level:
             column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
             self.halo = galerkin.Halo(rows, start)
-            columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))
-            self.W0 = galerkin.tentative(columns, self.n_coarse)
+            self.columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))
+            self.W0 = galerkin.tentative(self.columns, self.n_coarse)
             self.at = galerkin.diagonal_entries(self.halo.matrix(rows, start))
             self.pattern = LeafPattern(A, rows, self.leaf, start) if blocks else None
             self._numeric(rows, start)
@@ -60,11 +61,15 @@ class Level:
         local = self.halo.matrix(rows, start)
         diag = local.data[self.at] if self.at is not None else local.diagonal()
         self.bound = gershgorin(rows, diag, self.A.getComm())
+        weights = None
+        if self.weighted:
+            weights = _weights(self.A, diag, self.halo.ghosts)
+            self.W0 = galerkin.tentative(self.columns, self.n_coarse, weights)
         W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / self.bound)
         self.W = aij(self.A.getComm(), (self.A.getSizes()[0], (self.k, self.n_coarse)),
                      *split(W_rows, self.first, self.first + self.k))
         self.below = galerkin.galerkin(self.A, local, self.halo.ghosts, W_rows, self.W, self.first, self.k,
-                                         galerkin.leaf_scales(self.column, diag, self.k))
+                                         galerkin.leaf_scales(self.column, diag, self.k, weights))
 
     def refresh(self, rows=None):
         """The leaf-block matrix (where held), the smoothed coarse vectors and a new :attr:`below` from the operator's
@@ -78,6 +83,29 @@ class Level:
         for mat in (self.B, self.W):
             if mat is not None:
                 mat.destroy()
+
+
+def row_scaled(mat, rows) -> bool:
+    """Whether ``mat`` (this rank's ``rows``, no null space attached) is row-scaled, D A D with D far from constant
+    (unknowns in mixed units), whose near null space D^-1 1 the leaf constants miss and |diag|^-1/2 follows
+    (:mod:`..twolevel.scaling`'s quotients, rows their own diagonal decides left out; only where the sampled
+    neighbours' diagonals differ, :func:`..twolevel.scaling.neighbours_spread`). Collective."""
+    from ..twolevel import dominance, scaling
+
+    coll, start = Collective(mat.getComm()), mat.getOwnershipRange()[0]
+    if mat.getNullSpace().handle or not scaling.neighbours_spread(rows, start, coll):
+        return False
+    with diagonal_block(mat, rows) as block:
+        return scaling.weights(rows, start, coll, block, dominance.pinned(rows, start, coll)[0])[0] is not None
+
+
+def _weights(A, diag, ghosts) -> np.ndarray:
+    """|a_ii|^-1/2 (1 where a_ii is 0) of this rank's rows (``diag``), then of its ``ghosts`` (collective on several
+    ranks)."""
+    z = 1.0 / np.sqrt(np.where(diag != 0, np.abs(diag), 1.0))
+    if A.getComm().getSize() == 1:
+        return z
+    return np.concatenate([z, ghost_values(A, z, ghosts)])
 
 
 @contextlib.contextmanager

@@ -14,12 +14,24 @@ from ..twolevel.spacereuse import stale_cost
 from . import cycle
 from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
-from .level import JACOBI, banded_leaves, leaves
+from .level import JACOBI, banded_leaves, leaves, row_scaled
 from .moved import WeakInside
 from .ranges import Ranges
 
 
 RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
+
+
+WEIGHTED = " weighted by |diag|^-1/2 (a row-scaled operator)"      # -ksp_view's words on the finest leaf vectors
+
+
+def _check(prefix, coarse_max, max_levels, damping, jacobi, smoother):
+    """A ValueError naming the options ``prefix`` + ... out of range, or none."""
+    if coarse_max < 1 or max_levels < 1 or not 0 < damping < 2 or not jacobi > 0:
+        raise ValueError(f"-{prefix}coarse_max and -{prefix}max_levels must be at least 1, -{prefix}damping in (0, 2) "
+                         f"and -{prefix}jacobi positive; got {coarse_max}, {max_levels}, {damping}, {jacobi}")
+    if smoother not in cycle.SMOOTHERS:
+        raise ValueError(f"-{prefix}smoother {smoother}: expected auto or one of {', '.join(cycle.SMOOTHERS)}")
 
 
 class MultilevelPC:
@@ -46,13 +58,7 @@ class MultilevelPC:
         elif reorder is None:               # collective: createSubMatrix on every rank or none
             reorder = Collective(mat.getComm()).any(not local_order(rows, mat.getOwnershipRange()[0]))
         self.reorder = reorder
-        if self.coarse_max < 1 or self.max_levels < 1 or not 0 < self.damping < 2 or not self.jacobi > 0:
-            raise ValueError(f"-{self.prefix}coarse_max and -{self.prefix}max_levels must be at least 1, "
-                             f"-{self.prefix}damping in (0, 2) and -{self.prefix}jacobi positive; got {self.coarse_max}, "
-                             f"{self.max_levels}, {self.damping}, {self.jacobi}")
-        if self.smoother not in cycle.SMOOTHERS:
-            raise ValueError(f"-{self.prefix}smoother {self.smoother}: expected auto or one of "
-                             f"{', '.join(cycle.SMOOTHERS)}")
+        _check(self.prefix, self.coarse_max, self.max_levels, self.damping, self.jacobi, self.smoother)
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.xw = None              # the projected input's work vector (:meth:`mult`)
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
@@ -103,7 +109,8 @@ class MultilevelPC:
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
-                                       blocks=self.smoother == "leaves", rows=rows if self.P is None else None)
+                                       self.smoother == "leaves", rows if self.P is None else None,
+                                       row_scaled(self.mat, rows))
         self._cycle(rows)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
 
@@ -202,7 +209,8 @@ class MultilevelPC:
                 f"operator complexity {h.complexity():.2f}",
                 f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"
                 + ("; each rank's rows taken in their leaves' order" if self.P is not None else "")
-                + "; coarse vectors: the leaf constants smoothed by one Jacobi step; smoother: "
+                + f"; coarse vectors: the leaf constants{WEIGHTED if h.weighted else ''} smoothed by one Jacobi step; "
+                + "smoother: "
                 + cycle.described(self.pc, self.scales, self.damping),
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
                 + (f"; finest leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
