@@ -16,7 +16,7 @@ from petsc_htp.multilevel import cycle
 from petsc_htp.multilevel.hierarchy import Hierarchy
 from petsc_htp.multilevel.level import Level
 from petsc_htp.petscmat import local_rows
-from test_foreign import lines, solve
+from test_foreign import EXAMPLE, HTPPC_FLAGS, _mpirun, lines, solve
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -583,3 +583,33 @@ def test_a_galerkin_row_within_rounding_of_its_scale_becomes_a_unit_row():
     assert (kept != C[:2]).nnz == 0
     shifted = _unit_null_rows(sp.csr_matrix(C.toarray()[2:3]), 2, np.array([2.0]))   # a rank's rows from 2 on
     assert shifted.toarray().tolist() == [[0.0, 0.0, 1.0, 0.0]] and NULL_SHARE < 1e-12
+
+
+@pytest.mark.parametrize("variant", ["multilevel", "twolevel"])
+def test_a_matrix_scaled_to_1e200_or_1e_200_is_aggregated_without_overflow(variant):
+    """The strength tests take square roots of the diagonal before products: a 2-D DMDA matrix times 1e200 (whose
+    a_ii a_jj overflowed, with RuntimeWarnings) or 1e-200 (where it underflowed to 0 and every coupling counted as
+    strong) converges as the matrix itself does, warnings raised as errors."""
+    import warnings
+
+    A, b = CASES["dmda2d"](4096, 0)
+    opts = {"htp_variant": variant, "htp_direct_max": 0, **({"htp_ml_coarse_max": 500} if variant == "multilevel" else {})}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        base = solve(A, b, **opts)[1]
+        for scale in (1e200, 1e-200):
+            reason, its, relres, ksp, mat = solve(A * scale, b, **opts)
+            assert reason > 0 and abs(its - base) <= 2 and relres < 1e-7, (scale, its, base)
+
+
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_hierarchy_of_one_level_factors_the_matrix(ranks):
+    """V-cycles forced on a matrix no larger than the coarsest size (or whose first level would stall): PCMG's one
+    level is its coarse solve, which takes the banded factor or the LU (it had taken the smoother's one sweep under
+    mg_levels_0_: 500 CG iterations without converging on a 64^2 DMDA)."""
+    for n, coarse, how in (("64", "5000", "banded Cholesky"), ("200", "100000", "lu" if ranks == 1 else "redundant")):
+        proc = _mpirun(ranks, EXAMPLE, "-n", n, "-htp_variant", "multilevel", "-htp_direct_max", "0",
+                       "-htp_ml_coarse_max", coarse, *HTPPC_FLAGS)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "iterations: 1\n" in proc.stdout and f"levels: 1, rows {int(n) ** 2} (the coarsest by {how}" in \
+            proc.stdout, proc.stdout

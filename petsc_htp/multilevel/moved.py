@@ -29,10 +29,9 @@ class WeakInside:
 
     def count(self, rows) -> int:
         """Weak couplings (|a_ij| < THETA sqrt(|a_ii a_jj|)) among the sampled inside entries of ``rows``."""
-        diag = rows.diagonal(k=self.start)
-        vals = rows.data[self.src]
-        bound = THETA * THETA * np.abs(diag[self.row] * diag[self.col])
-        return int(np.count_nonzero((vals * vals < bound) & (vals != 0)))
+        root = np.sqrt(np.abs(rows.diagonal(k=self.start)))      # square roots first: no overflow at 1e200
+        vals = np.abs(rows.data[self.src])
+        return int(np.count_nonzero((vals < THETA * root[self.row] * root[self.col]) & (vals != 0)))
 
     def moved(self, rows) -> bool:
         """Whether ``rows``' new values hold more than WEAK_GROWTH times the weak couplings this rank's leaves held

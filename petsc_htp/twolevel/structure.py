@@ -122,8 +122,8 @@ class Structure:
         src, row_diag, col_diag = self._weak_maps()
         vals = data[src]
         theta = self.theta if theta is None else theta
-        bound = theta * theta * np.abs(data[row_diag] * data[col_diag])
-        return int(np.count_nonzero((vals * vals < bound) & (vals != 0)))
+        bound = theta * np.sqrt(np.abs(data[row_diag])) * np.sqrt(np.abs(data[col_diag]))     # no overflow at 1e200
+        return int(np.count_nonzero((np.abs(vals) < bound) & (vals != 0)))
 
     def moved(self, rows) -> bool:
         """Whether new values ``rows`` (same pattern) moved away from aggregation leaves: they now hold more than
