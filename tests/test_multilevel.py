@@ -604,7 +604,7 @@ def test_a_matrix_scaled_to_1e200_or_1e_200_is_aggregated_without_overflow(varia
 
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_hierarchy_of_one_level_factors_the_matrix(ranks):
-    """V-cycles forced on a matrix no larger than the coarsest size (or whose first level would stall): PCMG's one
+    """V-cycles forced on a matrix no larger than the coarsest size: PCMG's one
     level is its coarse solve, which takes the banded factor or the LU (it had taken the smoother's one sweep under
     mg_levels_0_: 500 CG iterations without converging on a 64^2 DMDA)."""
     for n, coarse, how in (("64", "5000", "banded Cholesky"), ("200", "100000", "lu" if ranks == 1 else "redundant")):
