@@ -570,19 +570,21 @@ def test_sealed_pockets_leave_no_null_pivot_to_the_smoothers_or_the_coarsest_fac
 
 def test_a_galerkin_row_within_rounding_of_its_scale_becomes_a_unit_row():
     """Rows whose entries all lie within NULL_SHARE of their own scale (or none) are emptied, their columns' entries in
-    the rank's other rows dropped, and given a unit diagonal; the other rows are kept as they were."""
+    the rank's other rows dropped, and given their scale (1 where it is 0) on the diagonal; the other rows are kept as
+    they were."""
     from petsc_htp.multilevel.galerkin import NULL_SHARE, _unit_null_rows
 
     C = sp.csr_matrix(np.array([[4.0, -1.0, 1e-17, 0.0], [-1.0, 4.0, 0.0, 0.0], [1e-17, 0.0, -3e-16, 0.0],
                                 [0.0, 0.0, 0.0, 0.0]]))
     scale = np.array([4.0, 4.0, 2.0, 1.0])
     out = _unit_null_rows(C, 0, scale).toarray()
-    assert np.array_equal(out, np.array([[4.0, -1.0, 0, 0], [-1.0, 4.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]]))
+    assert np.array_equal(out, np.array([[4.0, -1.0, 0, 0], [-1.0, 4.0, 0, 0], [0, 0, 2.0, 0], [0, 0, 0, 1.0]]))
+    assert _unit_null_rows(C, 0, np.array([4.0, 4.0, 2.0, 0.0])).toarray()[3, 3] == 1.0     # no scale: 1
     assert _unit_null_rows(C, 0, scale * 1e-6).toarray()[2, 2] == -3e-16     # against a scale that small: kept
     kept = _unit_null_rows(C[:2], 0, np.array([4.0, 4.0]))              # no null row: the same matrix back
     assert (kept != C[:2]).nnz == 0
     shifted = _unit_null_rows(sp.csr_matrix(C.toarray()[2:3]), 2, np.array([2.0]))   # a rank's rows from 2 on
-    assert shifted.toarray().tolist() == [[0.0, 0.0, 1.0, 0.0]] and NULL_SHARE < 1e-12
+    assert shifted.toarray().tolist() == [[0.0, 0.0, 2.0, 0.0]] and NULL_SHARE < 1e-12
 
 
 @pytest.mark.parametrize("variant", ["multilevel", "twolevel"])
@@ -604,12 +606,15 @@ def test_a_matrix_scaled_to_1e200_or_1e_200_is_aggregated_without_overflow(varia
 
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_hierarchy_of_one_level_factors_the_matrix(ranks):
-    """V-cycles forced on a matrix no larger than the coarsest size: PCMG's one
-    level is its coarse solve, which takes the banded factor or the LU (it had taken the smoother's one sweep under
-    mg_levels_0_: 500 CG iterations without converging on a 64^2 DMDA)."""
-    for n, coarse, how in (("64", "5000", "banded Cholesky"), ("200", "100000", "lu" if ranks == 1 else "redundant")):
+    """V-cycles forced on a matrix no larger than the coarsest size: PCMG's one level is its coarse solve, which takes
+    the banded factor or the LU, also where the user set a levels' option for the smoothers (it had taken the
+    smoother's one sweep under mg_levels_0_: CG did not converge on a 64^2 DMDA)."""
+    lu = "lu" if ranks == 1 else "redundant"
+    for n, coarse, how, theirs in (("64", "5000", "banded Cholesky", ()), ("200", "100000", lu, ()),
+                                   ("64", "5000", "banded Cholesky", ("-htp_ml_mg_levels_pc_type", "jacobi")),
+                                   ("200", "100000", lu, ("-htp_ml_mg_levels_pc_type", "jacobi"))):
         proc = _mpirun(ranks, EXAMPLE, "-n", n, "-htp_variant", "multilevel", "-htp_direct_max", "0",
-                       "-htp_ml_coarse_max", coarse, *HTPPC_FLAGS)
+                       "-htp_ml_coarse_max", coarse, *theirs, *HTPPC_FLAGS)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "iterations: 1\n" in proc.stdout and f"levels: 1, rows {int(n) ** 2} (the coarsest by {how}" in \
             proc.stdout, proc.stdout

@@ -61,13 +61,16 @@ def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None, count=2) ->
     :data:`SMOOTHERS`), the coarse LU's where ``lu`` (else only KSPPREONLY: the banded factor's PC is set apart):
     PCMG's distinct up smoothers unless the user set a levels' option (Gauss-Seidel then sweeps both ways each time,
     so that the V-cycle stays symmetric). With ``count`` 1 level, PCMG's coarse solve is that level's (``mg_levels_0_``),
-    and no smoother's are set (it had taken the smoother's one sweep, and CG 500 iterations on a 64^2 DMDA)."""
+    and no smoother's are set (it had taken the smoother's one sweep: CG did not converge in 10 000 iterations on a
+    64^2 DMDA, ``results/robust-20261128/ab.txt``)."""
     theirs = users_levels(prefix) if theirs is None else theirs
     sweep = SYMMETRIC_SWEEP if theirs else SWEEPS[0]
     solve = DIAGONAL if smoother == "jacobi" else sweep if smoother == "gs" else LEAF_SOLVE[ranks]
     out = {"mg_levels_" + k: v for k, v in {**SMOOTHER, **solve}.items()} if count > 1 else {}
     coarse = "mg_coarse_" if count > 1 else "mg_levels_0_"
     out.update({coarse + k: v for k, v in COARSE[ranks].items() if lu or k == "ksp_type"})
+    if count == 1 and not lu:
+        out[coarse + "pc_type"] = "python"             # the banded factor's, which a user's levels' type would replace
     if not theirs:
         out["pc_mg_distinct_smoothup"] = "true"
     return out
@@ -96,12 +99,13 @@ def multigrid(hierarchy, prefix, damping=DAMPING, smoother="leaves", ground=None
         pc.setMGLevels(count)
         pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
         names = PETSc.Options().getAll()                   # the user's, before the defaults
-        own = any(name.startswith((prefix + "mg_coarse_pc_", prefix + "mg_coarse_redundant_"))
-                  for name in names)                        # the user's coarse solver
+        coarse = ("mg_coarse_pc_", "mg_coarse_redundant_") if count > 1 else ("mg_levels_0_pc_",)
+        own = any(name.startswith(tuple(prefix + c for c in coarse)) for name in names)    # the user's coarse solver
         made = None if own else banded(ops[-1], ground)
         theirs = users_levels(prefix, names)
         finest = None if count < 2 or theirs else hierarchy.levels[0].bound
-        with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None, theirs, count)):
+        with scoped(prefix, defaults(prefix, 1 if comm.getSize() == 1 else 2, smoother, made is None, theirs, count),
+                    None if count > 1 else names):      # one level: its own options, not the user's smoothers
             pc.setFromOptions()
             for level in range(1, count):
                 pc.setMGInterpolation(level, hierarchy.levels[count - 1 - level].W)

@@ -15,8 +15,9 @@ from petsc4py import PETSc
 from ..aijarrays import aij, split
 from ..petscmat import ghost_values, read_csr
 
-NULL_SHARE = 1e-13      # a Galerkin row whose entries all lie within this share of its scale is null (rounding: 1e-16;
-#                         a log-normal field of contrast 1e10 keeps its weakest couplings at 1e-10)
+NULL_SHARE = 1e-13      # a Galerkin row whose entries all lie within this share of its scale is null (rounding: 1e-16);
+# a leaf constant on an island of conductivity K in a medium of e keeps about e / K of its scale: above 1e12 contrast
+# such an island's coarse row is taken for null too (its coarse correction then lost, the V-cycle still SPD)
 
 
 class Halo:
@@ -100,13 +101,14 @@ def leaf_scales(column, diag, k, weights=None) -> np.ndarray:
     """Each of this rank's ``k`` coarse rows' scale: the sum of w_i^2 |a_ii| over its leaf's rows (``column``: each
     row's coarse column on this rank, -1 for none; ``diag``: their diagonal; ``weights``: W0's entries w, else 1), of
     the order of its Galerkin diagonal."""
-    scale = np.abs(diag) if weights is None else np.square(weights[:diag.size]) * np.abs(diag)
+    scale = np.abs(diag) if weights is None else np.square(weights[:diag.size] * np.sqrt(np.abs(diag)))
     return np.bincount(column + 1, scale, minlength=k + 1)[1:]        # rows without a column counted apart
 
 
 def _unit_null_rows(C, first, scale) -> sp.csr_matrix:
     """``C`` (rows ``first``... of a Galerkin operator, global columns, sorted) with each null row emptied, its column's
-    entries in this rank's rows dropped, and a 1 on its diagonal: a row empty or whose entries all lie within
+    entries in this rank's rows dropped (other ranks' rows keep theirs, at rounding's size), and its ``scale`` (1 where
+    that is 0) on its diagonal: a row empty or whose entries all lie within
     :data:`NULL_SHARE` of its ``scale`` (:func:`leaf_scales`), a coarse vector A annihilates (a leaf constant of a null
     component: a sealed pocket of a closed domain, whose row rounding leaves at 1e-16 of its scale, of either sign).
     Such a row couples to nothing and so stands alone, where the smoothers' sweeps (PCSOR) divide by its diagonal
@@ -127,7 +129,8 @@ def _unit_null_rows(C, first, scale) -> sp.csr_matrix:
     where = np.flatnonzero(null)
     C = (sp.csr_matrix((C.data[keep], C.indices[keep], np.concatenate(([0], np.cumsum(np.bincount(
         row[keep], minlength=C.shape[0]))))), shape=C.shape)
-         + sp.csr_matrix((np.ones(where.size), (where, where + first)), shape=C.shape)).tocsr()
+         + sp.csr_matrix((np.where(scale[where] > 0, scale[where], 1.0), (where, where + first)),
+                         shape=C.shape)).tocsr()
     C.sort_indices()
     return C
 

@@ -49,8 +49,8 @@ class Level:
             column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
             self.halo = galerkin.Halo(rows, start)
-            self.columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))
-            self.W0 = galerkin.tentative(self.columns, self.n_coarse)
+            self.halo_columns = galerkin.coarse_columns(A, self.halo, np.where(column >= 0, column + self.first, -1))
+            self.W0 = None if weighted else galerkin.tentative(self.halo_columns, self.n_coarse)   # else each step's
             self.at = galerkin.diagonal_entries(self.halo.matrix(rows, start))
             self.pattern = LeafPattern(A, rows, self.leaf, start) if blocks else None
             self._numeric(rows, start)
@@ -64,7 +64,7 @@ class Level:
         weights = None
         if self.weighted:
             weights = _weights(self.A, diag, self.halo.ghosts)
-            self.W0 = galerkin.tentative(self.columns, self.n_coarse, weights)
+            self.W0 = galerkin.tentative(self.halo_columns, self.n_coarse, weights)
         W_rows = galerkin.smoothed_rows(local, diag, self.W0, self.at, self.jacobi / self.bound)
         self.W = aij(self.A.getComm(), (self.A.getSizes()[0], (self.k, self.n_coarse)),
                      *split(W_rows, self.first, self.first + self.k))
@@ -102,7 +102,9 @@ def row_scaled(mat, rows) -> bool:
 def _weights(A, diag, ghosts) -> np.ndarray:
     """|a_ii|^-1/2 (1 where a_ii is 0) of this rank's rows (``diag``), then of its ``ghosts`` (collective on several
     ranks)."""
-    z = 1.0 / np.sqrt(np.where(diag != 0, np.abs(diag), 1.0))
+    from ..twolevel.scaling import inverse_root
+
+    z = inverse_root(diag)
     if A.getComm().getSize() == 1:
         return z
     return np.concatenate([z, ghost_values(A, z, ghosts)])

@@ -110,7 +110,7 @@ class MultilevelPC:
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
                                        self.smoother == "leaves", rows if self.P is None else None,
-                                       row_scaled(self.mat, rows))
+                                       self.mat.getSize()[0] > self.coarse_max and row_scaled(self.mat, rows))
         self._cycle(rows)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
 
@@ -209,9 +209,8 @@ class MultilevelPC:
                 f"operator complexity {h.complexity():.2f}",
                 f"leaves: aggregation, rows per coarse vector {ratio or 'none'}"
                 + ("; each rank's rows taken in their leaves' order" if self.P is not None else "")
-                + f"; coarse vectors: the leaf constants{WEIGHTED if h.weighted else ''} smoothed by one Jacobi step; "
-                + "smoother: "
-                + cycle.described(self.pc, self.scales, self.damping),
+                + f"; coarse vectors: the leaf constants{WEIGHTED if h.weighted and h.levels else ''} smoothed by one "
+                + "Jacobi step; smoother: " + cycle.described(self.pc, self.scales, self.damping),
                 f"setup ms: levels {t.get('levels', 0):.1f}, V-cycle {t.get('cycle', 0):.1f}; options -{self.prefix}*"
                 + (f"; finest leaves kept from {self.age} numeric setup{'s' if self.age > 1 else ''} ago ("
                    + ("leaf blocks, " if self.smoother == "leaves" else "")

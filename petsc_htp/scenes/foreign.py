@@ -13,6 +13,7 @@ PETSc user, a liquid simulation or a finite-element code hands over. Every funct
 - :func:`lognormal`: 5-point Poisson with a log-normal permeability of the given contrast.
 - :func:`neumann`: 5-point variable coefficients with no-flux walls (singular; the constant is its null space).
 - :func:`cubes`: 3-D finite volumes with random cubes of a high conductivity.
+- :func:`pockets`: a closed 2-D domain holding sealed pockets, each a null component of its own (singular).
 - :mod:`petsc_htp.scenes.meshes`: P1 finite elements on unstructured triangles and tets.
 """
 from __future__ import annotations
@@ -133,6 +134,34 @@ def neumann(side, contrast=1e3, seed=0) -> tuple:
              np.concatenate(vals + [diag]), n)
     b = np.random.default_rng(seed).standard_normal(n)
     return A, b - b.mean()
+
+
+def pockets(side, every, size=3, seed=1, extra=()) -> tuple:
+    """A closed domain of ``side``^2 cells, 5-point couplings of random weight (0.5 .. 2), Dirichlet walls, holding
+    pockets of ``size``^2 cells every ``every`` cells from (8, 8) and at the corners ``extra``, coupled to nothing
+    else: each a null component of its own (singular, handed over bare); b random with zero mean on each pocket
+    (consistent)."""
+    rng = np.random.default_rng(seed)
+    cell, pocket = np.arange(side * side).reshape(side, side), np.full((side, side), -1)
+    corners = [(i, j) for i in range(8, side - 8, every) for j in range(8, side - 8, every)] + list(extra)
+    for k, (i, j) in enumerate(corners):
+        pocket[i:i + size, j:j + size] = k
+    rows, cols, vals = [], [], []
+    for di, dj in ((0, 1), (1, 0)):
+        a, b = cell[:side - di, :side - dj].ravel(), cell[di:, dj:].ravel()
+        w = np.where(pocket.ravel()[a] == pocket.ravel()[b], rng.uniform(0.5, 2.0, a.size), 0.0)
+        rows += [a, b, a, b]
+        cols += [b, a, a, b]
+        vals += [-w, -w, w, w]
+    edge = np.isin(np.arange(side), (0, side - 1))
+    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(side * side,) * 2)
+    A = (A + sp.diags(2.0 * (edge[:, None] | edge[None, :]).ravel())).tocsr()
+    A.eliminate_zeros()
+    A.sort_indices()
+    b = rng.standard_normal(side * side)
+    label = pocket.ravel()
+    mean = np.bincount(label + 1, b) / np.maximum(np.bincount(label + 1), 1)
+    return A, np.where(label >= 0, b - mean[label + 1], b)
 
 
 def cubes(side, contrast=1e6, count=60, seed=5) -> tuple:

@@ -64,8 +64,8 @@ def decoupled_among(A, rows) -> np.ndarray:
 def strength(A, theta=THETA) -> sp.csr_matrix:
     """The strong couplings of ``A`` (diagonal kept): PyAMG's symmetric strength of connection, which compares
     |a_ij|^2 with theta^2 |a_ii a_jj|: entries beyond :data:`SQUARE_SAFE` either way are first scaled by a power of two
-    near the largest (exact; a 2-D DMDA matrix times 1e200 overflowed there, times 1e-200 underflowed, and its
-    aggregates differed: 27 against 13 CG iterations)."""
+    near the largest (exact; the foreign study's 2-D DMDA matrix of 40 000 rows times 1e200 overflowed there, times
+    1e-200 underflowed, and took 31 and 24 CG iterations against 13: ``results/robust-20261128/ab.txt``)."""
     n = A.shape[0]
     data = A.data
     top = max(float(data.max()), -float(data.min())) if data.size else 0.0     # no |data| copy

@@ -60,8 +60,10 @@ class RangeCheck:
         self.active = True          # whether the operator solved annihilates the constants too (:meth:`check`)
         self.size = coll.sum_array(np.bincount(self.comp, minlength=self.k).astype(np.float64))
         self.whole = self.k == 1 and self.size[0] == coll.sum(comp_of_row.size)     # one component, every row
-        scale = absolute[self.rows]
-        self.scale = float(np.sqrt(coll.sum_array(np.array([scale @ scale]))[0]))   # ||(|A| z)|| for z below
+        scale = absolute[self.rows]                          # ||(|A| z)|| for z below, by its largest entry
+        top = float(coll.max_array(np.array([scale.max(initial=0.0)]))[0])      # (no overflow at 1e200)
+        squares = np.square(scale / top).sum() if top > 0 else 0.0
+        self.scale = top * float(np.sqrt(coll.sum_array(np.array([squares]))[0]))
 
     def project(self, vec):
         """``vec`` (a PETSc Vec of the operator's rows) less its mean on each null component, in place; returned

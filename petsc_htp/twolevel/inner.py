@@ -26,10 +26,12 @@ SHIFTS = {"none": PETSc.Mat.FactorShiftType.NONE, "nonzero": PETSc.Mat.FactorShi
 
 
 @contextlib.contextmanager
-def scoped(prefix, defaults):
-    """``defaults`` in PETSc's options database under ``prefix`` where the user set nothing, for the block only."""
+def scoped(prefix, defaults, names=None):
+    """``defaults`` in PETSc's options database under ``prefix`` where the user set nothing, for the block only;
+    ``names``: the database's names, where given, in which the name itself must be (PETSc's lookup of a level's
+    ``mg_levels_0_`` name otherwise finds the user's ``mg_levels_`` one)."""
     db = PETSc.Options(prefix)
-    added = [name for name in defaults if not db.hasName(name)]
+    added = [name for name in defaults if (prefix + name not in names if names is not None else not db.hasName(name))]
     for name in added:
         db.setValue(name, defaults[name])
     try:

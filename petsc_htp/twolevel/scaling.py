@@ -26,6 +26,11 @@ SPREAD = 0.15       # the sampled couplings' median |log10(a_ii / a_jj)| from wh
 SPREAD_ROWS = 1024  # ... in about this many rows
 
 
+def inverse_root(diag) -> np.ndarray:
+    """|a_ii|^-1/2 of the diagonal ``diag`` (1 where a_ii is 0): the smoother vector z of a row-scaled operator."""
+    return 1.0 / np.sqrt(np.where(diag != 0, np.abs(diag), 1.0))
+
+
 def quotients(rows, start, coll, block=None, solved=None) -> tuple:
     """(the constant's quotient, z's quotient, z) with z = |diag|^-1/2 on this rank's ``rows`` (CSR, global columns,
     local rows ``start`` ...; couplings to other ranks' rows, decoupled rows and the ``solved`` local rows left out:
@@ -34,7 +39,7 @@ def quotients(rows, start, coll, block=None, solved=None) -> tuple:
     from ``rows``."""
     n = rows.shape[0]
     diag = np.abs(rows.diagonal(k=start))
-    z = 1.0 / np.sqrt(np.where(diag > 0, diag, 1.0))
+    z = inverse_root(diag)
     coupled = ~decoupled_rows(rows, start)
     if solved is not None:
         coupled[solved] = False
@@ -53,12 +58,15 @@ def quotients(rows, start, coll, block=None, solved=None) -> tuple:
 
 def neighbours_spread(rows, start, coll) -> bool:
     """Whether the diagonal entries of coupled rows differ enough over all ranks (``coll``) to call for the quotients:
-    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of about :data:`SPREAD_ROWS` evenly spaced rows of
-    this rank's ``rows`` (columns of this rank's) above :data:`SPREAD` on some rank, read from those rows and their
-    neighbours' alone. D A D with D in 1e-1 .. 1e1 per row: about 0.6; the foreign study's matrices: 0 (a
-    coefficient jump changes the rows along it only); the quotients cost 83 ms at 1M rows. Collective."""
+    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of :data:`SPREAD_ROWS` rows drawn at random (a
+    fixed draw: a stride of 1 024 rows sampled the 1M-row DMDA's boundary column alone) of this rank's ``rows``
+    (columns of this rank's) above :data:`SPREAD` on some rank, read from those rows and their neighbours' alone (one
+    neighbour a row). D A D with D = 10^U(-0.5, 0.5) per row: about 0.6 (a_ii scales as
+    d_i^2); the foreign study's matrices at 65 536 rows: 0 (a coefficient jump changes the rows along it only; a
+    log-normal field of 4 096 rows passes, and the quotients then keep its constants). Its cost and the quotients':
+    ``results/robust-20261128/gate.txt``. Collective."""
     n = rows.shape[0]
-    picked = np.arange(0, n, max(1, n // SPREAD_ROWS))
+    picked = np.sort(np.random.default_rng(0).integers(0, n, min(n, SPREAD_ROWS)))
     mine, (where, owner) = _diagonal_of(rows, start, picked)
     col = rows.indices[where] - start
     pair = np.flatnonzero((rows.data[where] != 0) & (col != picked[owner]) & (col >= 0) & (col < n))
