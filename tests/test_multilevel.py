@@ -618,3 +618,15 @@ def test_a_hierarchy_of_one_level_factors_the_matrix(ranks):
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "iterations: 1\n" in proc.stdout and f"levels: 1, rows {int(n) ** 2} (the coarsest by {how}" in \
             proc.stdout, proc.stdout
+
+
+def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own_on_every_level():
+    """Log-normal edge weights exp(5 N(0, 1)) on 2 ranks (tests/edges_case.py, V-cycles forced): a row whose couplings
+    to the other rank outweigh the rest is a leaf of its own (ranksplit.cut_rows, as the two-level method's leaves),
+    so its coarse column keeps the pair's common mode: 50 CG iterations against 102 (one rank: 43)."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "edges_case.py")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    reason, its, relres = out.stdout.split()
+    assert int(reason) > 0 and int(its) <= 70 and float(relres) < 1e-7, out.stdout
