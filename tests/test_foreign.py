@@ -351,7 +351,7 @@ def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own(tmp_path)
     couplings, are leaves of one row each, so the mode lies in their coarse columns. A split that cuts many such rows
     (more than ranksplit.CUT_ROWS) makes none, nor does a Q1 stencil whose couplings weigh twice its diagonal
     (PETSc's ksp ex3: the rows beside the cut had been leaves of one row)."""
-    from petsc_htp.ranksplit import CUT_ROWS, cut_rows
+    from petsc_htp.ranksplit import CUT_ROWS, CUT_SHARE, cut_rows
 
     side, rng = 128, np.random.default_rng(2)
     kx = np.where(rng.random((side + 1, side)) < 0.2, 1e4, 1.0)        # kx[i, j]: between nodes (i - 1, j), (i, j)
@@ -365,6 +365,9 @@ def test_rows_strongly_coupled_to_another_rank_are_leaves_of_their_own(tmp_path)
     half = side * side // 2
     cut = cut_rows(A[:half], A[:half, :half].tocsr())
     assert 0 < np.count_nonzero(cut) <= CUT_ROWS * half
+    total, inside = (np.asarray(abs(M).sum(axis=1)).ravel() for M in (A[:half], A[:half, :half]))
+    d = np.abs(A.diagonal()[:half])                                    # the rows' sums over every row, as defined
+    assert np.array_equal(cut, (total - inside >= CUT_SHARE * d) & (total - inside > CUT_SHARE * (total - d)))
     assert not cut_rows(A[:half], sp.csr_matrix(A[:half, :half].diagonal() * sp.identity(half))).any()   # all cut
     J, I = sp.diags([1.0, 1.0], [-1, 1], (side, side)), sp.identity(side)
     Q1 = (8 * sp.kron(I, I) - 3 * (sp.kron(I, J) + sp.kron(J, I)) + sp.kron(J, J)).tocsr()   # ex3's signs: corners +1
