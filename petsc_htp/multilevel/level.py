@@ -17,7 +17,7 @@ from ..aijarrays import aij, split
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values, local_rows
 from ..ranksplit import cut_rows
-from ..twolevel.aggregation import aggregates, decoupled_rows
+from ..twolevel.aggregation import aggregates, decoupled_among, decoupled_rows
 from ..twolevel.csr import row_sums
 from . import galerkin
 
@@ -40,10 +40,12 @@ class Level:
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
             lone = decoupled_rows(rows, start)
-            within = lone                   # the decoupled rows of the diagonal block: on one rank A's
-            if coll.size > 1:
+            within = lone                   # the decoupled rows of the diagonal block: on one rank A's, on several
+            if coll.size > 1:               # A's but where a row has entries outside the block
                 with diagonal_block(A, rows) as block:
-                    within = decoupled_rows(block)
+                    extra = np.flatnonzero(np.diff(rows.indptr) > np.diff(block.indptr))
+                    within = lone.copy()
+                    within[extra] = decoupled_among(block, extra)
             self.joined = coll.size > 1 and coll.any(np.any(within & ~lone))
             self.leaf = leaves(A, rows, within) if leaf is None else leaf
             self.column, self.k = leaf_columns(self.leaf, lone)
@@ -131,6 +133,7 @@ def leaves(A, rows, lone=None) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     with diagonal_block(A, rows) as block:
         alone = cut_rows(rows, block) if A.getComm().getSize() > 1 else None
+        lone = decoupled_rows(block) if lone is None else lone           # kept on the rows (one rank)
         return aggregates(sp.csr_matrix(block), passes=PASSES, lone=lone, alone=alone)
 
 

@@ -45,12 +45,19 @@ SQUARE_SAFE = 1e100     # entries whose products of two stay far from overflow a
 
 
 def decoupled_rows(A, start=0) -> np.ndarray:
-    """Boolean (n,): rows of a CSR ``A`` (its diagonal in column ``start`` + row: a rank's rows with global
-    columns) with no nonzero off-diagonal entry."""
+    """Boolean (n,), read-only: rows of a CSR ``A`` (its diagonal in column ``start`` + row: a rank's rows with global
+    columns) with no nonzero off-diagonal entry. Kept on ``A`` for its arrays and ``start``: a set-up reads a rank's
+    rows once and asks this of them up to three times (the 1M-row DMDA matrix: 21 ms each)."""
+    kept = getattr(A, "_decoupled", None)
+    if kept is not None and kept[0] == start and all(a is b for a, b in zip(kept[1], (A.data, A.indices, A.indptr))):
+        return kept[2]
     zeros = np.flatnonzero(A.data == 0)                     # explicit zeros: few, counted per row
     stored = np.diff(A.indptr) - np.bincount(np.searchsorted(A.indptr, zeros, side="right") - 1,
                                              minlength=A.shape[0])
-    return stored - (A.diagonal(k=start) != 0) == 0
+    lone = stored - (A.diagonal(k=start) != 0) == 0
+    lone.flags.writeable = False
+    A._decoupled = (start, (A.data, A.indices, A.indptr), lone)
+    return lone
 
 
 def decoupled_among(A, rows) -> np.ndarray:
