@@ -39,7 +39,8 @@ PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-
 DECOUPLED_LEAF = 64     # rows per leaf of decoupled rows
 PAIR_THETA = 0.24       # share of both aggregates' outside couplings that makes a pair (a 1e3 jump: about 0.02)
 SECOND = ("standard", "pairs")   # kinds of the passes after the first
-SAMPLE_ROWS = 4096      # rows sampled for the threshold (:func:`sampled_shares`)
+SAMPLE_ROWS = 4096      # rows sampled for the shares (:func:`sampled_shares`): the graph's shape, weak shares
+THRESHOLD_ROWS = 1024   # ... and for each aggregation's threshold, a median (:func:`_drawn`)
 RELATIVE = 0.5          # ... its lowered threshold: this share of the median row's largest coupling
 SQUARE_SAFE = 1e100     # entries whose products of two stay far from overflow and underflow (strength's kernel)
 
@@ -85,22 +86,30 @@ def strength(A, theta=THETA) -> sp.csr_matrix:
     return sp.csr_matrix((Sx[:nnz], Sj[:nnz], Sp), shape=A.shape)
 
 
-def sampled_shares(A, rows=SAMPLE_ROWS) -> tuple:
+def sampled_shares(A, rows=SAMPLE_ROWS, picked=None) -> tuple:
     """The symmetric shares |a_ij| / sqrt(|a_ii a_jj|) of the nonzero off-diagonal entries of about ``rows`` evenly
-    spaced rows of a square CSR ``A`` (inf over a zero diagonal), each such row's largest, and the fraction of
-    those entries that are positive (0.0 where there are none)."""
-    picked = np.arange(0, A.shape[0], max(1, A.shape[0] // rows))
+    spaced rows of a square CSR ``A`` (or the sorted rows ``picked``; inf over a zero diagonal), each such row's
+    largest, and the fraction of those entries that are positive (0.0 where there are none)."""
+    picked = np.arange(0, A.shape[0], max(1, A.shape[0] // rows)) if picked is None else picked
     where, owner = row_entries(A.indptr, picked)
-    row, col, signed = picked[owner], A.indices[where], A.data[where]
+    col, signed = A.indices[where], A.data[where]
     val = np.abs(signed)
-    off = (val != 0) & (col != row)
-    positive = float(np.mean(signed[off] > 0)) if off.any() else 0.0
-    root = np.sqrt(np.abs(A.diagonal()))                              # scipy's C loop: one read per row
-    scale = root[row[off]] * root[col[off]]                           # no overflow at 1e200
+    off = np.flatnonzero((val != 0) & (col != picked[owner]))
+    positive = float(np.mean(signed[off] > 0)) if off.size else 0.0
+    root = np.sqrt(np.abs(A.diagonal()))          # scipy's C loop over every row: cheaper than the neighbours' rows
+    scale = root[picked[owner[off]]] * root[col[off]]                 # roots first: no overflow at 1e200
     share = np.divide(val[off], scale, out=np.full(scale.size, np.inf), where=scale > 0)
     largest = np.zeros(picked.size)
-    np.maximum.at(largest, owner[off], share)
+    if off.size:                                                      # each sampled row's entries lie together
+        first = np.flatnonzero(np.concatenate(([True], owner[off][1:] != owner[off][:-1])))
+        largest[owner[off][first]] = np.maximum.reduceat(share, first)
     return share, largest[largest > 0], positive
+
+
+def _drawn(n) -> np.ndarray:
+    """:data:`THRESHOLD_ROWS` of ``n`` rows drawn at random (a fixed draw, sorted; a stride may follow a grid's
+    column), for the threshold's median."""
+    return np.sort(np.random.default_rng(0).integers(0, n, min(n, THRESHOLD_ROWS)))
 
 
 def threshold(largest, theta=THETA) -> float:
@@ -223,7 +232,7 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
         whole = keep.size == n or not alone.any()        # decoupled rows stand alone in A's strong graph: no
         M = A if whole else A[keep][:, keep].tocsr()     # submatrix (8 ms of the DMDA's 262 144 rows), their
         agg = np.arange(M.shape[0])                      # aggregates dropped below
-        theta = threshold(sampled_shares(M)[1]) if theta is None else theta
+        theta = threshold(sampled_shares(M, picked=_drawn(M.shape[0]))[1]) if theta is None else theta
         for step in range(passes):
             if step and second == "pairs":
                 count, node = pairs(M)

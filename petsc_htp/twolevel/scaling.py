@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .aggregation import decoupled_rows
-from .csr import row_entries
+from .csr import diagonal_of
 
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 SPREAD = 0.15       # the sampled couplings' median |log10(a_ii / a_jj)| from which the quotients are worth computing
@@ -67,24 +67,14 @@ def neighbours_spread(rows, start, coll) -> bool:
     ``results/robust-20261128/gate.txt``. Collective."""
     n = rows.shape[0]
     picked = np.sort(np.random.default_rng(0).integers(0, n, min(n, SPREAD_ROWS)))
-    mine, (where, owner) = _diagonal_of(rows, start, picked)
+    mine, (where, owner) = diagonal_of(rows, picked, start)
     col = rows.indices[where] - start
     pair = np.flatnonzero((rows.data[where] != 0) & (col != picked[owner]) & (col >= 0) & (col < n))
     first = pair[np.concatenate(([True], owner[pair][1:] != owner[pair][:-1]))] if pair.size else pair
-    mine, theirs = mine[owner[first]], _diagonal_of(rows, start, col[first])[0]     # one neighbour a sampled row
+    mine, theirs = mine[owner[first]], diagonal_of(rows, col[first], start)[0]      # one neighbour a sampled row
     both = (mine > 0) & (theirs > 0)
     spread = np.abs(np.log10(mine[both] / theirs[both]))
     return coll.any(bool(spread.size) and float(np.median(spread)) > SPREAD)
-
-
-def _diagonal_of(rows, start, which) -> tuple:
-    """(|a_ii| of the local rows ``which`` of ``rows``, their diagonal in column ``start`` + row, 0 where none | their
-    entries, :func:`.csr.row_entries`), read from those rows' entries alone."""
-    where, owner = row_entries(rows.indptr, which)
-    on = rows.indices[where] - start == which[owner]
-    diag = np.zeros(which.size)
-    diag[owner[on]] = np.abs(rows.data[where[on]])
-    return diag, (where, owner)
 
 
 def attached(mat, coll):
