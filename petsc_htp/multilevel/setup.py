@@ -62,7 +62,7 @@ class MultilevelPC:
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
         self.xw = None              # the projected input's work vector (:meth:`mult`)
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
-        self.renew, self.building, self.ranges = False, False, Ranges(mat)     # building: each step builds anew
+        self.renew, self.ranges = False, Ranges(mat)
         self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
         self.scales, self.times, self.leaf_its, self.ms_per_it, self.its = [], {}, [], 0.0, None
         self.analysis_ms = 1e3 * (time.perf_counter() - t0)
@@ -76,17 +76,13 @@ class MultilevelPC:
         coarser levels anew (:meth:`.hierarchy.Hierarchy.refresh`) unless they moved away from them on some rank
         (:meth:`moved`) or a solve took more than :data:`RENEW` times the iterations of the first on them: then the
         hierarchy is built anew (its leaves' order too, where reordered), the analysis (the whole-matrix choice, whether
-        to reorder, the null components) kept; where those extra iterations cost more than the build saved, every later
-        step builds anew (on some rank: P1 triangles whose values change every frame, 26 against 16 iterations on kept
-        leaves)."""
-        self.times, coll = {}, Collective(self.mat.getComm())
-        renew, self.renew = coll.any(self.renew), False
+        to reorder, the null components) kept."""
+        self.times = {}
+        renew, self.renew = Collective(self.mat.getComm()).any(self.renew), False
         grew = bool(self.first_its and self.its and self.its > RENEW * self.first_its)
-        self.building = self.building or (grew and coll.any(stale_cost([self.first_its, self.its], self.ms_per_it)
-                                                            > self.build_ms - self.refresh_ms))
         self.anew = (None if self.hierarchy is None else "the couplings moved away from the last ones" if renew
                      else f"a solve took {self.its} iterations, more than {RENEW} x the first's {self.first_its}"
-                     if grew else "kept leaves had cost more than new ones" if self.building else None)
+                     if grew else None)
         if self.anew is None and self.hierarchy is not None:
             self.pc.destroy()               # first: the old coarser levels it holds go before the new are made
             self.pc = None
