@@ -35,13 +35,11 @@ def crossing(mat, rows, coll, nonzero):
         return None
     start, end = mat.getOwnershipRange()
     with diagonal_block(mat, rows) as block:                # only rows with entries outside it are read (the 1M
-        extra = np.flatnonzero(np.diff(rows.indptr) > np.diff(block.indptr))     # DMDA's strips: 0.1 % of them)
-    where = row_entries(rows.indptr, extra)[0]
+        where = row_entries(rows.indptr, outside_rows(rows, block))[0]           # DMDA's strips: 0.1 % of them)
+        diagonal = int(np.count_nonzero(block.diagonal()))
     col = rows.indices[where]
     cut = int(np.count_nonzero(nonzero[where] & ((col < start) | (col >= end))))
-    diag = mat.getDiagonal()
-    off = int(np.count_nonzero(nonzero)) - int(np.count_nonzero(diag.getArray(readonly=True)))
-    diag.destroy()
+    off = int(np.count_nonzero(nonzero)) - diagonal
     worst = coll.max_array(np.array([cut / off if off else 0.0]))[0]
     total = coll.sum(off)
     return coll.size, (coll.sum(cut) / total if total else 0.0), float(worst)
@@ -67,18 +65,22 @@ def cut_rows(rows, block) -> np.ndarray:
     :data:`CUT_ROWS` of the rows (else none). Such a row holds a strong coupling the rank's leaves cannot keep (a
     random field of contrast 1e4 at 16 384 rows: CG took 21 iterations on one rank, 85 on two, 101 on three; now 29
     and 22, ``results/sweep-20261127b``): as a leaf of its own its coarse column keeps the coupled pair's common mode."""
-    from .twolevel.csr import row_entries
+    from .twolevel.csr import abs_diagonal_of, row_entries
 
     n = rows.shape[0]
     cut = np.zeros(n, dtype=bool)
     if n == 0 or rows.shape[1] == n:
         return cut
-    extra = np.flatnonzero(np.diff(rows.indptr) > np.diff(block.indptr))   # rows with entries outside the block
-    where, owner = row_entries(rows.indptr, extra)                         # alone read (a strip's border: the
-    total = np.bincount(owner, np.abs(rows.data[where]), minlength=extra.size)    # sums over every row had cost
-    where, owner = row_entries(block.indptr, extra)                        # 12 of 240 ms of a 2-rank set-up)
-    inside = np.abs(block.data[where])
-    diag = np.bincount(owner, np.where(block.indices[where] == extra[owner], inside, 0.0), minlength=extra.size)
-    cross = total - np.bincount(owner, inside, minlength=extra.size)
+    extra = outside_rows(rows, block)                                      # alone read (a strip's border: the
+    where, owner = row_entries(rows.indptr, extra)                         # sums over every row had cost 15 of
+    total = np.bincount(owner, np.abs(rows.data[where]), minlength=extra.size)    # 240 ms of a 2-rank set-up,
+    diag, (where, owner) = abs_diagonal_of(block, extra)                   # profiled)
+    cross = total - np.bincount(owner, np.abs(block.data[where]), minlength=extra.size)
     cut[extra[(cross >= CUT_SHARE * diag) & (cross > CUT_SHARE * (total - diag))]] = True
     return cut if np.count_nonzero(cut) <= CUT_ROWS * n else np.zeros(n, dtype=bool)
+
+
+def outside_rows(rows, block) -> np.ndarray:
+    """This rank's ``rows`` (CSR, global columns) that hold entries outside its diagonal ``block`` (CSR): the only rows
+    whose couplings reach another rank."""
+    return np.flatnonzero(np.diff(rows.indptr) > np.diff(block.indptr))

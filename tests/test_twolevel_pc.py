@@ -948,6 +948,21 @@ def test_a_one_rank_pattern_takes_values_in_the_order_given_like_petsc_coo():
         m.destroy()
 
 
+def test_rows_drawn_and_their_diagonal_read_from_their_entries():
+    """csr.drawn: k distinct rows sorted, the same each call, every row where there are no more; csr.abs_diagonal_of:
+    |a_ii| of the given rows (repeats allowed), 0 where none is stored, with the rows' entries."""
+    from petsc_htp.twolevel.csr import abs_diagonal_of, drawn
+
+    picked = drawn(10_000, 1024)
+    assert picked.size == 1024 and np.all(np.diff(picked) > 0) and np.array_equal(picked, drawn(10_000, 1024))
+    assert np.array_equal(drawn(500, 1024), np.arange(500)) and drawn(0, 8).size == 0
+    A = sp.csr_matrix(np.array([[-3.0, 1.0, 0.0], [1.0, 0.0, 2.0], [0.0, 2.0, 5.0]]))
+    A.eliminate_zeros()
+    diag, (where, owner) = abs_diagonal_of(A, np.array([2, 0, 1, 2]))
+    assert diag.tolist() == [5.0, 3.0, 0.0, 5.0] and np.bincount(owner).tolist() == [2, 2, 2, 2]
+    assert abs_diagonal_of(A[1:], np.array([0, 1]), start=1)[0].tolist() == [0.0, 5.0]      # a rank's rows from 1
+
+
 def test_row_sums_reduce_each_row_and_give_zero_for_empty_rows():
     """csr.row_sums: each row's sum with no per-entry row array, 0 for a row that stores nothing (also the last)."""
     from petsc_htp.twolevel.csr import row_sums

@@ -16,7 +16,7 @@ from petsc4py import PETSc
 from ..aijarrays import aij, split
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values, local_rows
-from ..ranksplit import cut_rows
+from ..ranksplit import cut_rows, outside_rows
 from ..twolevel.aggregation import aggregates, decoupled_among, decoupled_rows
 from ..twolevel.csr import row_sums
 from . import galerkin
@@ -40,12 +40,8 @@ class Level:
         coll = Collective(A.getComm())
         with _read(A, rows) as rows:
             lone = decoupled_rows(rows, start)
-            within = lone                   # the decoupled rows of the diagonal block: on one rank A's, on several
-            if coll.size > 1:               # A's but where a row has entries outside the block
-                with diagonal_block(A, rows) as block:
-                    extra = np.flatnonzero(np.diff(rows.indptr) > np.diff(block.indptr))
-                    within = lone.copy()
-                    within[extra] = decoupled_among(block, extra)
+            with diagonal_block(A, rows) as block:
+                within = block_decoupled(rows, start, block)
             self.joined = coll.size > 1 and coll.any(np.any(within & ~lone))
             self.leaf = leaves(A, rows, within) if leaf is None else leaf
             self.column, self.k = leaf_columns(self.leaf, lone)
@@ -133,8 +129,21 @@ def leaves(A, rows, lone=None) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     with diagonal_block(A, rows) as block:
         alone = cut_rows(rows, block) if A.getComm().getSize() > 1 else None
-        lone = decoupled_rows(block) if lone is None else lone           # kept on the rows (one rank)
+        lone = block_decoupled(rows, A.getOwnershipRange()[0], block) if lone is None else lone
         return aggregates(sp.csr_matrix(block), passes=PASSES, lone=lone, alone=alone)
+
+
+def block_decoupled(rows, start, block) -> np.ndarray:
+    """The decoupled rows of this rank's diagonal ``block`` of its ``rows`` (their diagonal in column ``start`` +
+    row): the rows' own (kept on them, :func:`..twolevel.aggregation.decoupled_rows`), but where a row has entries
+    outside the block, read again from the block (its couplings to other ranks alone would leave it decoupled there)."""
+    lone = decoupled_rows(rows, start)
+    if block is rows:                                              # one rank
+        return lone
+    extra = outside_rows(rows, block)
+    within = lone.copy()
+    within[extra] = decoupled_among(block, extra)
+    return within
 
 
 def banded_leaves(A, rows, leaf) -> np.ndarray:

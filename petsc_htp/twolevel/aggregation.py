@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .amgkernels import kernels
-from .csr import indptr_of, row_entries
+from .csr import drawn, indptr_of, row_entries
 
 THETA = 0.08            # strength threshold (AMGCL's eps_strong and PyAMG's usual value for SA)
 PASSES = 2              # aggregation passes: 2 gives leaves of 10-40 rows on 2-D and 3-D Poisson-type graphs
@@ -40,7 +40,7 @@ DECOUPLED_LEAF = 64     # rows per leaf of decoupled rows
 PAIR_THETA = 0.24       # share of both aggregates' outside couplings that makes a pair (a 1e3 jump: about 0.02)
 SECOND = ("standard", "pairs")   # kinds of the passes after the first
 SAMPLE_ROWS = 4096      # rows sampled for the shares (:func:`sampled_shares`): the graph's shape, weak shares
-THRESHOLD_ROWS = 1024   # ... and for each aggregation's threshold, a median (:func:`_drawn`)
+THRESHOLD_ROWS = 1024   # ... and for each aggregation's threshold, a median (drawn: :func:`.csr.drawn`)
 RELATIVE = 0.5          # ... its lowered threshold: this share of the median row's largest coupling
 SQUARE_SAFE = 1e100     # entries whose products of two stay far from overflow and underflow (strength's kernel)
 
@@ -104,12 +104,6 @@ def sampled_shares(A, rows=SAMPLE_ROWS, picked=None) -> tuple:
         first = np.flatnonzero(np.concatenate(([True], owner[off][1:] != owner[off][:-1])))
         largest[owner[off][first]] = np.maximum.reduceat(share, first)
     return share, largest[largest > 0], positive
-
-
-def _drawn(n) -> np.ndarray:
-    """:data:`THRESHOLD_ROWS` of ``n`` rows drawn at random (a fixed draw, sorted; a stride may follow a grid's
-    column), for the threshold's median."""
-    return np.sort(np.random.default_rng(0).integers(0, n, min(n, THRESHOLD_ROWS)))
 
 
 def threshold(largest, theta=THETA) -> float:
@@ -232,7 +226,7 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
         whole = keep.size == n or not alone.any()        # decoupled rows stand alone in A's strong graph: no
         M = A if whole else A[keep][:, keep].tocsr()     # submatrix (8 ms of the DMDA's 262 144 rows), their
         agg = np.arange(M.shape[0])                      # aggregates dropped below
-        theta = threshold(sampled_shares(M, picked=_drawn(M.shape[0]))[1]) if theta is None else theta
+        theta = threshold(sampled_shares(M, picked=drawn(M.shape[0], THRESHOLD_ROWS))[1]) if theta is None else theta
         for step in range(passes):
             if step and second == "pairs":
                 count, node = pairs(M)

@@ -16,7 +16,7 @@ def row_entries(indptr, rows) -> tuple:
     return where, np.repeat(np.arange(rows.size), count)
 
 
-def diagonal_of(A, which, start=0) -> tuple:
+def abs_diagonal_of(A, which, start=0) -> tuple:
     """(|a_ii| of the rows ``which`` of the CSR ``A``, their diagonal in column ``start`` + row, 0 where none | their
     entries, :func:`row_entries`), read from those rows' entries alone (no pass over every row)."""
     where, owner = row_entries(A.indptr, which)
@@ -24,6 +24,14 @@ def diagonal_of(A, which, start=0) -> tuple:
     diag = np.zeros(len(which))
     diag[owner[on]] = np.abs(A.data[where[on]])
     return diag, (where, owner)
+
+
+def drawn(n, k) -> np.ndarray:
+    """``k`` of ``n`` rows drawn at random without repeats (a fixed draw, sorted; a stride may follow a grid's column),
+    or every row where there are no more."""
+    if n <= k:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(0).choice(n, k, replace=False))
 
 
 def indptr_of(rows, n) -> np.ndarray:

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .aggregation import decoupled_rows
-from .csr import diagonal_of
+from .csr import abs_diagonal_of, drawn
 
 RATIO = 0.25        # z's quotient must be below this share of the constant's
 SPREAD = 0.15       # the sampled couplings' median |log10(a_ii / a_jj)| from which the quotients are worth computing
@@ -58,20 +58,20 @@ def quotients(rows, start, coll, block=None, solved=None) -> tuple:
 
 def neighbours_spread(rows, start, coll) -> bool:
     """Whether the diagonal entries of coupled rows differ enough over all ranks (``coll``) to call for the quotients:
-    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of :data:`SPREAD_ROWS` rows drawn at random (a
-    fixed draw: a stride of 1 024 rows sampled the 1M-row DMDA's boundary column alone) of this rank's ``rows``
+    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of :data:`SPREAD_ROWS` rows drawn at random (:func:`.csr.drawn`:
+    a stride of 1 024 rows sampled the 1M-row DMDA's boundary column alone) of this rank's ``rows``
     (columns of this rank's) above :data:`SPREAD` on some rank, read from those rows and their neighbours' alone (one
     neighbour a row). D A D with D = 10^U(-0.5, 0.5) per row: about 0.6 (a_ii scales as
     d_i^2); the foreign study's matrices at 65 536 rows: 0 (a coefficient jump changes the rows along it only; a
     log-normal field of 4 096 rows passes, and the quotients then keep its constants). Its cost and the quotients':
     ``results/robust-20261128/gate.txt``. Collective."""
     n = rows.shape[0]
-    picked = np.sort(np.random.default_rng(0).integers(0, n, min(n, SPREAD_ROWS)))
-    mine, (where, owner) = diagonal_of(rows, picked, start)
+    picked = drawn(n, SPREAD_ROWS)
+    mine, (where, owner) = abs_diagonal_of(rows, picked, start)
     col = rows.indices[where] - start
     pair = np.flatnonzero((rows.data[where] != 0) & (col != picked[owner]) & (col >= 0) & (col < n))
     first = pair[np.concatenate(([True], owner[pair][1:] != owner[pair][:-1]))] if pair.size else pair
-    mine, theirs = mine[owner[first]], diagonal_of(rows, col[first], start)[0]      # one neighbour a sampled row
+    mine, theirs = mine[owner[first]], abs_diagonal_of(rows, col[first], start)[0]  # one neighbour a sampled row
     both = (mine > 0) & (theirs > 0)
     spread = np.abs(np.log10(mine[both] / theirs[both]))
     return coll.any(bool(spread.size) and float(np.median(spread)) > SPREAD)
