@@ -33,6 +33,9 @@ TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
                        "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
+KEEP_SHARE = 0.1    # a new pattern whose rows and entries a row lie within this share of the last one's keeps its
+# whole-matrix choice where that was the two-level method or the V-cycles (a liquid's pattern changes every frame: the
+# choice took 7 of 58 ms of a set-up at 65 536 rows)
 VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "multilevel": ("petsc_htp.multilevel.variant", "Multilevel"),
             "paper": ("petsc_htp.paper.variant", "Paper")}
 
@@ -68,6 +71,7 @@ class TwoLevel:
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         self.choice = None                         # whether and why the whole matrix is factored (WholeChoice)
+        self.kept = None                           # the sizes that chose no whole factor, while they hold (direct)
         self.exact_only = None                     # why ICC(0) of the whole matrix does not serve (:meth:`once`)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
@@ -103,6 +107,8 @@ class TwoLevel:
             setup = DirectPC(mat, A, kind, self.prefix + "htp_", c.why, c.holds, c.take_made())
         else:
             setup = self.composed(mat, A, coords)
+            if self.choice.kept:
+                self.note = "; ".join(filter(None, (self.note, "the whole-matrix choice kept from the last pattern")))
         setup.analysis_ms += times["choice"]           # -ksp_view's analysis: the choice (a trial) included
         return setup
 
@@ -143,11 +149,24 @@ class TwoLevel:
 
     def direct(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``), or None: the two-level method
-        (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective)."""
+        (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective). A new pattern of as many rows and
+        entries a row as the last (within :data:`KEEP_SHARE`), alike bare, null space and block size, keeps the last
+        choice where that was none (its :attr:`~petsc_htp.whole.WholeChoice.kept` then set), also across a KSPReset
+        (which a new size calls for; a KSPSetFromOptions makes PCPYTHON a new context, which chooses afresh)."""
+        from .collective import Collective
         from .whole import WholeChoice
 
+        n, nnz = mat.getSize()[0], Collective(mat.getComm()).sum(A.nnz)
+        sizes = (n, nnz / max(n, 1), coords is None, bool(mat.getNullSpace().handle), mat.getBlockSize(),
+                 self.exact_only)
+        if self.kept is not None and sizes[2:] == self.kept[2:] and all(
+                abs(a - b) <= KEEP_SHARE * b for a, b in zip(sizes[:2], self.kept[:2])):
+            self.choice.kept = True
+            return None
         self.choice = WholeChoice(self.opts, self.exact_only)
-        return self.choice.kind(mat, A, coords)
+        kind = self.choice.kind(mat, A, coords)
+        self.kept = sizes if kind is None and self.choice.why is None else None
+        return kind
 
     def once(self, ksp, pc, setup) -> bool:
         """Whether a solve by ``ksp`` calls for a new analysis: one of :data:`FIXED` (a KSPPREONLY: PCMG's coarse

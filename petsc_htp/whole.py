@@ -30,6 +30,7 @@ class WholeChoice:
 
     def __init__(self, opts, exact_only=None):
         self.opts, self.why, self.holds, self.made, self.exact_only = opts, None, None, None, exact_only
+        self.kept = False           # kept for a new pattern of the same sizes (:meth:`..variants.TwoLevel.direct`)
         self.shape = None          # this rank's block's graph shape (:meth:`block_shape`)
 
     def take_made(self):

@@ -1247,3 +1247,40 @@ def test_the_partition_line_warns_where_the_split_cuts_many_couplings():
     assert "WARNING" not in good
     bad, = describe((4, CUT_ADVICE + 0.01, 0.5))
     assert "ranks: 4; 21.0%" in bad and "WARNING: leaves hold one rank's rows" in bad and "at most 50.0%" in bad
+
+
+def test_a_new_pattern_of_the_same_sizes_keeps_the_whole_matrix_choice():
+    """A liquid's frames on one KSP (a new Mat each frame, KSPReset where its size changed, no second
+    KSPSetFromOptions): the second frame keeps the first's choice of no whole factor and -ksp_view says so; a matrix
+    of other sizes (a chain) chooses afresh (its banded factor)."""
+    from petsc_htp.petscmat import frame_mat, frame_vec
+
+    db = PETSc.Options("keep_")
+    for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "pc_type": "python",
+                 "pc_python_type": "petsc_htp.HTPPC"}.items():
+        db.setValue(k, v)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOptionsPrefix("keep_")
+    chain = sp.diags([-np.ones(19_999), 2.0 * np.ones(20_000), -np.ones(19_999)], [-1, 0, 1], format="csr")
+    frames = [CASES["free_surface"](32768, 0), CASES["free_surface"](32768, 1), (chain, np.ones(20_000))]
+    notes, mats = [], []
+    for k, (A, b) in enumerate(frames):
+        frame = bare_frame(A, b, "")
+        mats.append(frame_mat(frame, PETSc.COMM_SELF))
+        if k:
+            ksp.reset()
+        ksp.setOperators(mats[-1], mats[-1])
+        if not k:
+            ksp.setFromOptions()
+        rhs = frame_vec(frame, mats[-1])
+        x = rhs.duplicate()
+        ksp.solve(rhs, x)
+        assert ksp.getConvergedReason() > 0, k
+        ctx = ksp.getPC().getPythonContext()
+        notes.append((ctx.variant.note, getattr(ctx.setup, "kind", None)))
+    assert "kept" not in notes[0][0] and "the whole-matrix choice kept from the last pattern" in notes[1][0], notes
+    assert "kept" not in notes[2][0] and notes[2][1] == "band", notes
+    for obj in [ksp] + mats:
+        obj.destroy()
+    for k in ("ksp_type", "ksp_norm_type", "ksp_rtol", "pc_type", "pc_python_type"):
+        db.delValue(k)

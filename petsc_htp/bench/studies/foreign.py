@@ -73,8 +73,9 @@ class _Persistent:
             if old is not None and old.getSize() != self.mat.getSize():
                 self.ksp.reset()                        # PETSc's KSP keeps work vectors of the old size
             self.ksp.setOperators(self.mat, self.mat)
-            self.ksp.setFromOptions()
-            if old is not None:
+            if old is None:                             # once: KSPReset keeps the KSP's and PC's types and options
+                self.ksp.setFromOptions()               # (a second made PCPYTHON a new context each frame)
+            else:
                 old.destroy()
         rhs = frame_vec(frame, self.mat)
         x = rhs.duplicate()
