@@ -34,8 +34,8 @@ FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0)
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
                        "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
 KEEP_SHARE = 0.1    # a new pattern whose rows and entries a row lie within this share of the last one's keeps its
-# whole-matrix choice where that was the two-level method or the V-cycles (a liquid's pattern changes every frame: the
-# choice took 7 of 58 ms of a set-up at 65 536 rows)
+# whole-matrix choice where that was the two-level method or the V-cycles (a liquid's pattern changes every frame; the
+# choice is -log_view's HTPChoice event)
 VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "multilevel": ("petsc_htp.multilevel.variant", "Multilevel"),
             "paper": ("petsc_htp.paper.variant", "Paper")}
 
