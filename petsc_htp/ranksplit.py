@@ -34,8 +34,8 @@ def crossing(mat, rows, coll, nonzero):
     if coll.size < 2:
         return None
     start, end = mat.getOwnershipRange()
-    with diagonal_block(mat, rows) as block:                # only rows with entries outside it are read (the 1M
-        where = row_entries(rows.indptr, outside_rows(rows, block))[0]           # DMDA's strips: 0.1 % of them)
+    with diagonal_block(mat, rows) as block:                # only rows with entries outside it are read (a
+        where = row_entries(rows.indptr, outside_rows(rows, block))[0]           # strip's border)
         diagonal = int(np.count_nonzero(block.diagonal()))
     col = rows.indices[where]
     cut = int(np.count_nonzero(nonzero[where] & ((col < start) | (col >= end))))
@@ -71,10 +71,10 @@ def cut_rows(rows, block) -> np.ndarray:
     cut = np.zeros(n, dtype=bool)
     if n == 0 or rows.shape[1] == n:
         return cut
-    extra = outside_rows(rows, block)                                      # alone read (a strip's border: the
-    where, owner = row_entries(rows.indptr, extra)                         # sums over every row had cost 15 of
-    total = np.bincount(owner, np.abs(rows.data[where]), minlength=extra.size)    # 240 ms of a 2-rank set-up,
-    diag, (where, owner) = abs_diagonal_of(block, extra)                   # profiled)
+    extra = outside_rows(rows, block)                                      # alone read (a strip's border), not
+    where, owner = row_entries(rows.indptr, extra)                         # every row's sums
+    total = np.bincount(owner, np.abs(rows.data[where]), minlength=extra.size)
+    diag, (where, owner) = abs_diagonal_of(block, extra)
     cross = total - np.bincount(owner, np.abs(block.data[where]), minlength=extra.size)
     cut[extra[(cross >= CUT_SHARE * diag) & (cross > CUT_SHARE * (total - diag))]] = True
     return cut if np.count_nonzero(cut) <= CUT_ROWS * n else np.zeros(n, dtype=bool)

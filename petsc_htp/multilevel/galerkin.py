@@ -113,7 +113,7 @@ def _unit_null_rows(C, first, scale) -> sp.csr_matrix:
     component: a sealed pocket of a closed domain, whose row rounding leaves at 1e-16 of its scale, of either sign).
     Such a row couples to nothing and so stands alone, where the smoothers' sweeps (PCSOR) divide by its diagonal
     and the banded factor grounds it by its own magnitude: CG ended with DIVERGED_INDEFINITE_PC where 16 pockets of 9
-    rows lay in 65 536 rows on one rank, and 49 in 9 216 rows on two (``tests/pockets_case.py``)."""
+    rows lay in 65 536 rows, and 50 in 9 216 rows on one and two ranks (``results/robust-20261128/ab.txt``)."""
     bound = NULL_SHARE * scale
     if not np.any(np.abs(C.diagonal(k=first)) <= bound):            # a null row's diagonal is within it too
         return C
