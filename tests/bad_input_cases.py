@@ -47,6 +47,18 @@ def dist(A, null=None, rows_on=None, symmetric=True):
     return mat
 
 
+def htp_ksp(prefix, comm=COMM):
+    """A KSP under ``prefix`` whose options (set in the database) are CG to 1e-8 in the unpreconditioned norm with
+    HTPPC; KSPSetFromOptions is the caller's."""
+    db = PETSc.Options(prefix)
+    for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "pc_type": "python",
+                 "pc_python_type": "petsc_htp.HTPPC"}.items():
+        db.setValue(k, v)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOptionsPrefix(prefix)
+    return ksp
+
+
 def rhs(mat, b):
     vec = mat.createVecLeft()
     lo, hi = vec.getOwnershipRange()

@@ -14,16 +14,11 @@ from petsc4py import PETSc  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from petsc_htp.scenes.foreign import dmda  # noqa: E402
-from bad_input_cases import dist, rhs  # noqa: E402
+from bad_input_cases import dist, htp_ksp, rhs  # noqa: E402
 
 A, b = dmda(2, 200, 1e3, 0)
 mat = dist(A)
-db = PETSc.Options("mc_")
-for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "pc_type": "python",
-             "pc_python_type": "petsc_htp.HTPPC"}.items():
-    db.setValue(k, v)
-ksp = PETSc.KSP().create(PETSc.COMM_WORLD)
-ksp.setOptionsPrefix("mc_")
+ksp = htp_ksp("mc_")
 ksp.setOperators(mat, mat)
 ksp.setFromOptions()
 bv = rhs(mat, b)

@@ -1253,14 +1253,9 @@ def test_a_new_pattern_of_the_same_sizes_keeps_the_whole_matrix_choice():
     """A liquid's frames on one KSP (a new Mat each frame, KSPReset where its size changed, no second
     KSPSetFromOptions): the second frame keeps the first's choice of no whole factor and -ksp_view says so; a matrix
     of other sizes (a chain) chooses afresh (its banded factor)."""
-    from petsc_htp.petscmat import frame_mat, frame_vec
+    from bad_input_cases import htp_ksp
 
-    db = PETSc.Options("keep_")
-    for k, v in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "pc_type": "python",
-                 "pc_python_type": "petsc_htp.HTPPC"}.items():
-        db.setValue(k, v)
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    ksp.setOptionsPrefix("keep_")
+    ksp = htp_ksp("keep_", PETSc.COMM_SELF)
     chain = sp.diags([-np.ones(19_999), 2.0 * np.ones(20_000), -np.ones(19_999)], [-1, 0, 1], format="csr")
     frames = [CASES["free_surface"](32768, 0), CASES["free_surface"](32768, 1), (chain, np.ones(20_000))]
     notes, mats = [], []
@@ -1283,4 +1278,4 @@ def test_a_new_pattern_of_the_same_sizes_keeps_the_whole_matrix_choice():
     for obj in [ksp] + mats:
         obj.destroy()
     for k in ("ksp_type", "ksp_norm_type", "ksp_rtol", "pc_type", "pc_python_type"):
-        db.delValue(k)
+        PETSc.Options("keep_").delValue(k)
