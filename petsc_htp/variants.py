@@ -25,6 +25,8 @@ extra): asking for them without it is an error that says what to install.
 """
 from __future__ import annotations
 
+import numpy as np
+
 from importlib import import_module
 
 from .twolevel.config import Config
@@ -149,23 +151,30 @@ class TwoLevel:
 
     def direct(self, mat, A, coords):
         """The factor of the whole matrix that serves ``mat`` (this rank's rows ``A``), or None: the two-level method
-        (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective). A new pattern of as many rows and
-        entries a row as the last (within :data:`KEEP_SHARE`), alike bare, null space and block size, keeps the last
-        choice where that was none (its :attr:`~petsc_htp.whole.WholeChoice.kept` then set), also across a KSPReset
-        (which a new size calls for; a KSPSetFromOptions makes PCPYTHON a new context, which chooses afresh)."""
+        (:class:`~petsc_htp.whole.WholeChoice`, kept as :attr:`choice`; collective). Another Mat (a new pattern) of as
+        many rows and entries a row as the one the last choice was made for (within :data:`KEEP_SHARE`), alike
+        coordinates, null space, block size and KSP, above the sizes that small matrices' factors take and with no
+        option of the two-level method set and no rank without rows, keeps that choice where it was no whole factor
+        (its :attr:`~petsc_htp.whole.WholeChoice.kept` then set; the graph's shape found again), also across a
+        KSPReset (which a new size calls for; a KSPSetFromOptions makes PCPYTHON a new context, which chooses
+        afresh). The same Mat with new values chooses afresh."""
         from .collective import Collective
+        from .twolevel import sizing
         from .whole import WholeChoice
 
-        n, nnz = mat.getSize()[0], Collective(mat.getComm()).sum(A.nnz)
-        sizes = (n, nnz / max(n, 1), coords is None, bool(mat.getNullSpace().handle), mat.getBlockSize(),
-                 self.exact_only)
-        if self.kept is not None and sizes[2:] == self.kept[2:] and all(
-                abs(a - b) <= KEEP_SHARE * b for a, b in zip(sizes[:2], self.kept[:2])):
-            self.choice.kept = True
+        n, (nnz, empty) = mat.getSize()[0], Collective(mat.getComm()).sum_array(np.array([A.nnz, A.shape[0] == 0]))
+        sizes = (n, nnz / max(n, 1), 0 if coords is None else coords.shape[1],
+                 bool(mat.getNullSpace().handle), mat.getBlockSize(), self.exact_only, mat.getId())
+        if (self.kept is not None and sizes[6] != self.kept[6] and sizes[2:6] == self.kept[2:6] and not empty
+                and all(abs(a - b) <= KEEP_SHARE * b for a, b in zip(sizes[:2], self.kept[:2]))
+                and n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values())):
+            self.choice.kept, self.choice.shape = True, None       # the graph's shape found again where asked
+            self.kept = self.kept[:6] + sizes[6:]
             return None
         self.choice = WholeChoice(self.opts, self.exact_only)
         kind = self.choice.kind(mat, A, coords)
-        self.kept = sizes if kind is None and self.choice.why is None else None
+        plain = self.opts.plain and self.opts.direct_max < 0 and not empty
+        self.kept = sizes if kind is None and self.choice.why is None and plain else None
         return kind
 
     def once(self, ksp, pc, setup) -> bool:

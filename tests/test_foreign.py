@@ -1249,33 +1249,57 @@ def test_the_partition_line_warns_where_the_split_cuts_many_couplings():
     assert "ranks: 4; 21.0%" in bad and "WARNING: leaves hold one rank's rows" in bad and "at most 50.0%" in bad
 
 
+def _frames_on_one_ksp(frames, prefix, extra=()):
+    """Solve each (A, b) of ``frames`` on one KSP (a new Mat each, KSPReset where the size changed, one
+    KSPSetFromOptions) under ``prefix`` with HTPPC (``extra``: more options); each frame's (reason, variant note,
+    setup)."""
+    from bad_input_cases import htp_ksp
+
+    ksp, mats, out = htp_ksp(prefix, PETSc.COMM_SELF), [], []
+    try:
+        for k, v in extra:
+            PETSc.Options(prefix).setValue(k, v)
+        for k, (A, b) in enumerate(frames):
+            frame = bare_frame(A, b, "")
+            mats.append(frame_mat(frame, PETSc.COMM_SELF))
+            if k and mats[-1].getSize() != mats[-2].getSize():
+                ksp.reset()
+            ksp.setOperators(mats[-1], mats[-1])
+            if not k:
+                ksp.setFromOptions()
+            rhs = frame_vec(frame, mats[-1])
+            ksp.solve(rhs, rhs.duplicate())
+            ctx = ksp.getPC().getPythonContext()
+            out.append((ksp.getConvergedReason(), ctx.variant.note, ctx.setup))
+    finally:
+        for obj in [ksp] + mats:
+            obj.destroy()
+        for k in ("ksp_type", "ksp_norm_type", "ksp_rtol", "pc_type", "pc_python_type", *(k for k, _ in extra)):
+            PETSc.Options(prefix).delValue(k)
+    return out
+
+
 def test_a_new_pattern_of_the_same_sizes_keeps_the_whole_matrix_choice():
     """A liquid's frames on one KSP (a new Mat each frame, KSPReset where its size changed, no second
     KSPSetFromOptions): the second frame keeps the first's choice of no whole factor and -ksp_view says so; a matrix
-    of other sizes (a chain) chooses afresh (its banded factor)."""
-    from bad_input_cases import htp_ksp
+    of other sizes (a chain) chooses afresh (its banded factor); so does a frame under -htp_direct_max that crosses
+    it (9 216 rows after 10 000: Cholesky, as the option says), and a rank without rows on 2 ranks
+    (tests/keptchoice_case.py: a whole factor, where the kept choice had hung)."""
+    import shutil
+    import subprocess
+    import sys
 
-    ksp = htp_ksp("keep_", PETSc.COMM_SELF)
     chain = sp.diags([-np.ones(19_999), 2.0 * np.ones(20_000), -np.ones(19_999)], [-1, 0, 1], format="csr")
-    frames = [CASES["free_surface"](32768, 0), CASES["free_surface"](32768, 1), (chain, np.ones(20_000))]
-    notes, mats = [], []
-    for k, (A, b) in enumerate(frames):
-        frame = bare_frame(A, b, "")
-        mats.append(frame_mat(frame, PETSc.COMM_SELF))
-        if k:
-            ksp.reset()
-        ksp.setOperators(mats[-1], mats[-1])
-        if not k:
-            ksp.setFromOptions()
-        rhs = frame_vec(frame, mats[-1])
-        x = rhs.duplicate()
-        ksp.solve(rhs, x)
-        assert ksp.getConvergedReason() > 0, k
-        ctx = ksp.getPC().getPythonContext()
-        notes.append((ctx.variant.note, getattr(ctx.setup, "kind", None)))
-    assert "kept" not in notes[0][0] and "the whole-matrix choice kept from the last pattern" in notes[1][0], notes
-    assert "kept" not in notes[2][0] and notes[2][1] == "band", notes
-    for obj in [ksp] + mats:
-        obj.destroy()
-    for k in ("ksp_type", "ksp_norm_type", "ksp_rtol", "pc_type", "pc_python_type"):
-        PETSc.Options("keep_").delValue(k)
+    out = _frames_on_one_ksp([CASES["free_surface"](32768, 0), CASES["free_surface"](32768, 1),
+                              (chain, np.ones(20_000))], "keep_")
+    assert all(reason > 0 for reason, _, _ in out), out
+    assert "kept" not in out[0][1] and "the whole-matrix choice kept from the last pattern" in out[1][1], out
+    assert "kept" not in out[2][1] and getattr(out[2][2], "kind", None) == "band", out
+    out = _frames_on_one_ksp([CASES["dmda2d"](10_000, 0), CASES["dmda2d"](9216, 0)], "keepmax_",
+                             [("htp_direct_max", "9500")])
+    assert "kept" not in out[1][1] and getattr(out[1][2], "kind", None) == "cholesky", out
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    proc = subprocess.run([mpiexec, "-n", "2", sys.executable, str(Path(__file__).parent / "keptchoice_case.py")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.split() == ["0", "2", "MultilevelPC", "False", "1", "2", "DirectPC", "False"], proc.stdout
