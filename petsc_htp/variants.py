@@ -25,9 +25,9 @@ extra): asking for them without it is an error that says what to install.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from importlib import import_module
+
+import numpy as np
 
 from .twolevel.config import Config
 
@@ -35,9 +35,9 @@ TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
                        "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
-KEEP_SHARE = 0.1    # a new pattern whose rows and entries a row lie within this share of the last one's keeps its
-# whole-matrix choice where that was the two-level method or the V-cycles (a liquid's pattern changes every frame; the
-# choice is -log_view's HTPChoice event)
+KEEP_SHARE = 0.1    # another Mat whose rows and entries a row lie within this share of those the last fresh choice was
+# made for keeps that choice where it was no whole factor (a liquid's pattern changes every frame; the choice is
+# -log_view's HTPChoice event)
 VARIANTS = {"twolevel": ("petsc_htp.variants", "TwoLevel"), "multilevel": ("petsc_htp.multilevel.variant", "Multilevel"),
             "paper": ("petsc_htp.paper.variant", "Paper")}
 
@@ -73,7 +73,7 @@ class TwoLevel:
         self.opts, self.prefix = opts, prefix
         self.net, self.stale_ms = None, None       # stale_ms: the extra ms of old leaves when values last moved
         self.choice = None                         # whether and why the whole matrix is factored (WholeChoice)
-        self.kept = None                           # the sizes that chose no whole factor, while they hold (direct)
+        self.kept, self.chosen_for = None, None    # the sizes that chose no whole factor (direct), the last Mat's id
         self.exact_only = None                     # why ICC(0) of the whole matrix does not serve (:meth:`once`)
         if opts.coarse == "learned":
             require_torch("-htp_coarse learned (the coarse network)")
@@ -163,18 +163,19 @@ class TwoLevel:
         from .whole import WholeChoice
 
         n, (nnz, empty) = mat.getSize()[0], Collective(mat.getComm()).sum_array(np.array([A.nnz, A.shape[0] == 0]))
-        sizes = (n, nnz / max(n, 1), 0 if coords is None else coords.shape[1],
-                 bool(mat.getNullSpace().handle), mat.getBlockSize(), self.exact_only, mat.getId())
-        if (self.kept is not None and sizes[6] != self.kept[6] and sizes[2:6] == self.kept[2:6] and not empty
-                and all(abs(a - b) <= KEEP_SHARE * b for a, b in zip(sizes[:2], self.kept[:2]))
+        counts = (n, nnz / max(n, 1))
+        alike = (0 if coords is None else coords.shape[1], bool(mat.getNullSpace().handle), mat.getBlockSize(),
+                 self.exact_only)
+        other, self.chosen_for = mat.getId() != self.chosen_for, mat.getId()
+        if (self.kept is not None and other and alike == self.kept[1] and not empty
+                and all(abs(a - b) <= KEEP_SHARE * b for a, b in zip(counts, self.kept[0]))
                 and n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values())):
             self.choice.kept, self.choice.shape = True, None       # the graph's shape found again where asked
-            self.kept = self.kept[:6] + sizes[6:]
             return None
         self.choice = WholeChoice(self.opts, self.exact_only)
         kind = self.choice.kind(mat, A, coords)
         plain = self.opts.plain and self.opts.direct_max < 0 and not empty
-        self.kept = sizes if kind is None and self.choice.why is None and plain else None
+        self.kept = (counts, alike) if kind is None and self.choice.why is None and plain else None
         return kind
 
     def once(self, ksp, pc, setup) -> bool:

@@ -58,11 +58,11 @@ def quotients(rows, start, coll, block=None, solved=None) -> tuple:
 
 def neighbours_spread(rows, start, coll) -> bool:
     """Whether the diagonal entries of coupled rows differ enough over all ranks (``coll``) to call for the quotients:
-    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of :data:`SPREAD_ROWS` rows drawn at random (:func:`.csr.drawn`:
-    a stride of 1 024 rows sampled the 1M-row DMDA's boundary column alone) of this rank's ``rows``
-    (columns of this rank's) above :data:`SPREAD` on some rank, read from those rows and their neighbours' alone (one
-    neighbour a row). D A D with D = 10^U(-0.5, 0.5) per row: about 0.6 (a_ii scales as
-    d_i^2); the foreign study's matrices at 65 536 rows: 0 (a coefficient jump changes the rows along it only; a
+    the median |log10(|a_ii| / |a_jj|)| over the nonzero couplings of :data:`SPREAD_ROWS` rows drawn at random
+    (:func:`.csr.drawn`: a stride of 1 024 rows sampled the 1M-row DMDA's boundary column alone) of this rank's
+    ``rows`` (columns of this rank's) above :data:`SPREAD` on some rank, read from those rows and their neighbours'
+    alone (one neighbour a row). D A D with D = 10^U(-0.5, 0.5) per row: about 0.6 (a_ii scales as d_i^2); the
+    foreign study's matrices at 65 536 rows: 0 (a coefficient jump changes the rows along it only; a
     log-normal field of 4 096 rows passes, and the quotients then keep its constants). Its cost and the quotients':
     ``results/robust-20261128/gate.txt``. Collective."""
     n = rows.shape[0]
