@@ -23,6 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .collective import Collective
+from .petscmat import local_rows
 from .twolevel.aggregation import decoupled_rows
 from .twolevel.forms import DEFLATED_KSPS
 from .validation import check_symmetry, probe_values
@@ -44,12 +45,9 @@ def kept_columns(P, A, previous):
     if not coll.any(not same):
         columns = previous
     else:
-        diagonal_only = decoupled_rows(A, P.getOwnershipRange()[0])
-        lone = check_symmetry(P, diagonal_only)
+        lone = check_symmetry(P, lambda: decoupled_rows(A, P.getOwnershipRange()[0]))
         columns = KeptColumns(tuple(np.copy(k) if isinstance(k, np.ndarray) else k for k in key),
                               None if lone is None else np.flatnonzero(lone), coll)
-        if lone is None:                       # P's own Dirichlet rows, for an Amat that keeps their columns
-            columns.alone = np.flatnonzero(diagonal_only)
     if columns.rows is not None:
         try:
             columns.refresh(P)
@@ -75,7 +73,7 @@ class KeptColumns:
         A KSPSolve started on x_D = D^-1 b_D: M' alone is applied to vectors that vanish on those rows.
     alone : numpy.ndarray or None
         Where the operator is symmetric: its rows that couple to nothing (local numbers), started where an Amat
-        keeps their columns.
+        keeps their columns (found at the first solve with such an Amat).
     """
 
     def __init__(self, key=None, rows=None, coll=None):
@@ -127,7 +125,12 @@ class KeptColumns:
         """A symmetric Pmat whose Dirichlet rows couple to nothing (:attr:`alone`) beside an Amat that keeps their
         columns (the MatZeroRows form beside the MatZeroRowsColumns one): x_D = D^-1 b_D where the Amat's rows there
         hold just D, so that CG sees the Amat as the Pmat (collective)."""
-        if self.alone is None or amat.handle == pmat.handle or not self.coll.any(self.alone.size > 0):
+        if amat.handle == pmat.handle:
+            return None
+        if self.alone is None:                  # found at the first such solve
+            with local_rows(pmat) as rows:
+                self.alone = np.flatnonzero(decoupled_rows(rows, pmat.getOwnershipRange()[0]))
+        if not self.coll.any(self.alone.size > 0):
             return None
         diag = pmat.getDiagonal()
         d = diag.array_r[self.alone].copy()

@@ -129,6 +129,9 @@ class HTPOptions:
         """Read and validate ``-<prefix>htp_*`` from PETSc's options database."""
         from petsc4py import PETSc
 
+        lead = (prefix + "htp_").lower()
+        if not any(name.lower().startswith(lead) for name in PETSc.Options().getAll()):
+            return _DEFAULTS        # none set: the defaults (a tenth of the reads' time, which a small solve feels)
         db = PETSc.Options(prefix + "htp_")
         get = {str: db.getString, float: db.getReal, int: db.getInt, bool: db.getBool}
         values = {f.name: get[type(f.default)](f.name, f.default) for f in fields(cls)}
@@ -191,3 +194,5 @@ class HTPOptions:
         out += [f"  {opt}ml_{name} <{kind}> <default {default}>: {text} (HTPPC multilevel)"
                 for name, kind, default, text in MULTILEVEL_HELP]
         return "\n".join(out)
+
+_DEFAULTS = HTPOptions()      # every option at its default (validated as written)

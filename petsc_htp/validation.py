@@ -17,6 +17,7 @@ import numpy as np
 from .collective import Collective
 
 ASYMMETRY = 1e-8        # |x^T A y - y^T A x| / (|x| |y| max_i sum_j |a_ij|) above this: not symmetric
+NONE = np.iinfo(np.int64).max   # no such row on this rank (the ranks' least first row)
 
 PROBLEMS = ("a rank without rows", "NaN or Inf entries", "empty rows", "missing or zero diagonal entries",
             "negative diagonal entries")
@@ -59,9 +60,7 @@ def check_matrix(mat, rows, empty_ok=False) -> None:
     n_rows, n_cols = mat.getSize()
     start = mat.getOwnershipRange()[0]
     n = rows.shape[0]
-    diag = mat.getDiagonal()
-    d = diag.getArray(readonly=True).copy()
-    diag.destroy()
+    d = rows.diagonal(k=start)
     finite = np.isfinite(rows.data)
     none = np.zeros(0, dtype=np.int64)
     bad = [none if n or empty_ok else np.array([0]),                         # local row numbers
@@ -70,7 +69,7 @@ def check_matrix(mat, rows, empty_ok=False) -> None:
            np.flatnonzero(d == 0),
            np.flatnonzero(d < 0)]
     counts = np.array([b.size for b in bad] + [_split_apart(mat, n), rows.nnz], dtype=np.int64)
-    first = np.array([b[0] + start if b.size else np.iinfo(np.int64).max for b in bad] + [0, 0], dtype=np.int64)
+    first = np.array([b[0] + start if b.size else NONE for b in bad] + [0, 0], dtype=np.int64)
     coll = Collective(mat.getComm())
     counts, first = coll.sum_array(counts), coll.min_array(first)
     if counts[-1] == 0:
@@ -115,18 +114,23 @@ def check_attached(mat, coords, density) -> None:
 def check_symmetry(mat, dirichlet=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
     but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows;
-    ``dirichlet``: this rank's rows holding just their diagonal, boolean, :func:`.twolevel.aggregation.decoupled_rows`,
-    given on every rank or on none), return them (:mod:`petsc_htp.keptcolumns` drops their columns); None when
-    symmetric. A matrix flagged symmetric
+    ``dirichlet()``: this rank's rows holding just their diagonal, boolean, :func:`.twolevel.aggregation.decoupled_rows`,
+    asked only where the answer needs them, given on every rank or on none), return them
+    (:mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged symmetric
     (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc keeps the
     flag through MatZeroRows. Collective."""
-    count = Collective(mat.getComm()).sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
+    coll = Collective(mat.getComm())
     known, symmetric = mat.isSymmetricKnown()
-    if known and symmetric and not count:
-        return None
+    if known and symmetric:
+        dirichlet = None if dirichlet is None else dirichlet()
+        if not coll.sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet))):
+            return None
     gap, scale = _asymmetry(mat)
     if gap <= ASYMMETRY * scale:
         return None
+    if callable(dirichlet):
+        dirichlet = dirichlet()
+    count = coll.sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
     if count and _asymmetry(mat, dirichlet)[0] <= ASYMMETRY * scale:
         return dirichlet
     if known and symmetric:         # its word for the rest
@@ -149,8 +153,8 @@ def _asymmetry(mat, lone=None) -> tuple:
         mat.getDiagonal(tmp)
         keep, diag = np.where(lone, 0.0, 1.0), np.where(lone, tmp.array_r, 0.0)
     try:
-        for salt, v, av in ((1, x, ax), (2, y, ay)):
-            v.setArray(probe_values(start, end, salt))
+        for probe, v, av in zip(probe_values(start, end, (1, 2)), (x, y), (ax, ay)):
+            v.setArray(probe)
             if keep is None:
                 mat.mult(v, av)
             else:
@@ -167,9 +171,12 @@ def probe_values(start, end, salt) -> np.ndarray:
     """Entries ``start`` to ``end`` of a probe vector in [-0.5, 0.5), a hash (splitmix64) of each global index and
     ``salt``: the same vector on any number of ranks, so that a matrix near the threshold gets the same answer
     (PETSc's random vectors differ with the split: PETSc's ex3 at 10 000 rows, asymmetric by 2.5e-5 where MatZeroRows
-    kept the columns, passed on 2 ranks and failed on one)."""
-    z = (np.arange(start, end, dtype=np.uint64) + np.uint64(salt << 40)) * np.uint64(0x9E3779B97F4A7C15)
+    kept the columns, passed on 2 ranks and failed on one). A sequence of salts gives one row for each."""
+    salts = np.left_shift(np.array(salt, dtype=np.uint64), np.uint64(40))
+    salts = salts[:, None] if salts.ndim else salts            # one row per salt given
+    z = (np.arange(start, end, dtype=np.uint64) + salts) * np.uint64(0x9E3779B97F4A7C15)
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     z ^= z >> np.uint64(31)
-    return (z >> np.uint64(11)).astype(np.float64) / float(1 << 53) - 0.5
+    z = (z >> np.uint64(11)).astype(np.float64) / float(1 << 53) - 0.5
+    return z

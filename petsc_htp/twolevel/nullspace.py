@@ -101,11 +101,11 @@ def graph_components(A) -> tuple:
     """(number, label of each row) of the connected components of a square scipy CSR matrix's nonzero entries."""
     if A.shape[0] != A.shape[1]:
         raise ValueError(f"connected components need a square matrix, got shape {A.shape}")
-    graph = A
-    if not np.all(A.data != 0):
-        graph = A.copy()
-        graph.eliminate_zeros()
-    return pattern_components(graph.indptr, graph.indices, graph.shape[0])
+    nonzero = A.data != 0
+    if nonzero.all():
+        return pattern_components(A.indptr, A.indices, A.shape[0])
+    kept = np.concatenate(([0], np.cumsum(nonzero)))        # the stored zeros dropped, without a scipy copy
+    return pattern_components(kept[A.indptr], A.indices[nonzero], A.shape[0])
 
 
 def first_rows(label, marked) -> np.ndarray:
