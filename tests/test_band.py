@@ -6,7 +6,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from petsc_htp.scenes import foreign
-from petsc_htp.twolevel import sizing
+from petsc_htp.twolevel import nullspace, sizing
 from petsc_htp.twolevel.band import Band, ordering, own_width
 from test_foreign import lines, solve
 
@@ -128,6 +128,43 @@ def test_a_null_direction_that_is_no_constant_is_grounded():
     reason, its, relres, ksp, _ = solve(S, b)
     assert reason > 0 and relres <= 1e-8 and its <= 5, (reason, its, relres)
     assert "one banded Cholesky factor" in lines(ksp) and "1 null pivot(s) grounded" in lines(ksp)
+
+
+def _edges(side, sigma):
+    """A grid of ``side``^2 cells whose edges have log-normal weights exp(``sigma`` N(0, 1)), Dirichlet walls (1 added
+    to the diagonal of the boundary cells): a nonsingular M-matrix."""
+    rng = np.random.default_rng(0)
+    cell = np.arange(side * side).reshape(side, side)
+    a = np.concatenate([cell[:, :-1].ravel(), cell[:-1, :].ravel()])
+    c = np.concatenate([cell[:, 1:].ravel(), cell[1:, :].ravel()])
+    w = np.exp(sigma * rng.standard_normal(a.size))
+    L = sp.csr_matrix((np.concatenate([-w, -w, w, w]), (np.concatenate([a, c, a, c]), np.concatenate([c, a, a, c]))),
+                      shape=(side * side,) * 2)
+    wall = np.isin(np.arange(side), (0, side - 1))
+    A = sp.csr_matrix(L + sp.diags((wall[:, None] | wall[None, :]).ravel().astype(float)))
+    A.sort_indices()
+    return A, rng.standard_normal(side * side)
+
+
+def test_a_regular_m_matrix_whose_couplings_span_many_orders_keeps_its_small_pivots():
+    """Edge weights exp(7 N(0, 1)) on 100^2 cells: the row sums vanish against the largest diagonal entry, yet the
+    signs and the walls' row sums show the matrix regular (nullspace.m_regular), so nothing is grounded and the banded
+    factor serves as it is: CG stops after at most 2 iterations at the matrix's precision (PETSc's Cholesky reaches
+    6e-7; grounded, 19 pivots and 308 iterations). A Neumann matrix, its D A D and one with a positive coupling are
+    not taken for regular."""
+    A, b = _edges(100, 7.0)
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                              A.data), comm=PETSc.COMM_SELF)
+    reason, its, relres, ksp, _ = solve(A, b, mat=mat)
+    assert reason > 0 and its <= 2 and relres <= 1e-5, (reason, its, relres)
+    assert "one banded Cholesky factor" in lines(ksp) and "grounded" not in lines(ksp), lines(ksp)
+    N, _ = foreign.neumann(12)
+    d = 10.0 ** np.random.default_rng(0).uniform(-2, 2, N.shape[0])
+    positive = sp.csr_matrix(A[:144, :144])
+    positive[0, 1] = positive[1, 0] = 1e-3
+    for M, regular in ((A, True), (N, False), (sp.diags(d) @ N @ sp.diags(d), False), (positive, False)):
+        M = sp.csr_matrix(M)
+        assert nullspace.m_regular(M, *reversed(nullspace.graph_components(M))).all() == regular
 
 
 def test_a_singular_chain_on_two_ranks_is_grounded_in_its_band(tmp_path):

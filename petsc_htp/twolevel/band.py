@@ -14,7 +14,7 @@ from scipy.linalg import lapack
 
 from .csr import row_sums
 from .cuthill import reverse_cuthill_mckee
-from .nullspace import graph_components, vanishing
+from .nullspace import graph_components, m_regular, vanishing
 
 NATURAL_WIDTH = 16     # the rows' own order's bandwidth up to which it is kept (RCM took 4 ms for a chain of 65 536
 #                        rows, more than a factor of that bandwidth)
@@ -89,7 +89,9 @@ class Band:
         diagonal entry raised by its own magnitude, and the values are factored again; where at most one row is given
         and every row sum vanishes, the last row in the band's order is grounded first instead (a connected graph's
         one null pivot, as before rows were given: the Neumann square's iterations stay), and after
-        :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Returns (info: k > 0 where the k-th pivot in the band's order is
+        :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Where no more
+        than one row is given and the values make a nonsingular M-matrix (:func:`.nullspace.m_regular`), nothing is
+        grounded and small pivots stay as they are. Returns (info: k > 0 where the k-th pivot in the band's order is
         negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
         factorisations; else 0 | the rows grounded, in the original order)."""
         values = data[self.lower]
@@ -97,14 +99,18 @@ class Band:
         diag[self.on_col] = np.abs(values[self.on])
         grounded = np.zeros(0, dtype=np.int64)
         given = 0 if ground is None else len(ground)
-        if self.shape[1] and given <= 1 and vanishing(row_sums(self.indptr, data), diag).all():
-            grounded = np.array([self.shape[1] - 1])
+        rowsum, regular = row_sums(self.indptr, data), None
+        if self.shape[1] and given <= 1 and vanishing(rowsum, diag).all():
+            regular = self._regular(data, rowsum)
+            grounded = np.zeros(0, dtype=np.int64) if regular else np.array([self.shape[1] - 1])
         elif given:
             grounded = np.unique(self.position[ground])
         for attempt in range(GROUND_MAX):
             info, null = self._attempt(values, diag, grounded)
             if info > 0 or null.size == 0:
                 return info, self.perm[grounded]
+            if attempt == 0 and not grounded.size and (self._regular(data, rowsum) if regular is None else regular):
+                return 0, self.perm[grounded]           # small pivots of a regular matrix: its factor as it is
             if attempt == EVERY_AFTER:
                 null = np.union1d(null, self._component_ends(data))
             grounded = np.union1d(grounded, null)
@@ -123,6 +129,14 @@ class Band:
                 return info, np.zeros(0, dtype=np.int64)
             return 0, np.array([info - 1])
         return 0, np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag)
+
+    def _regular(self, data, rowsum) -> bool:
+        """Whether the values ``data`` make a nonsingular M-matrix by their signs and row sums
+        (:func:`.nullspace.m_regular`)."""
+        n = self.shape[1]
+        A = sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+        count, label = graph_components(A)
+        return bool(m_regular(A, label, count, rowsum).all())
 
     def _component_ends(self, data) -> np.ndarray:
         """The last row (band order) of each connected component of the nonzero entries ``data``'s graph."""

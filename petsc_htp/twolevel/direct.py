@@ -202,6 +202,8 @@ class DirectPC:
                                                self.comp_of_row, self.n_comp)
         else:
             null = nullspace.null_by_rowsums(rowsum, diag, self.comp_of_row, self.n_comp)
+            if null.any():              # not those whose signs and row sums show them regular
+                null &= ~nullspace.m_regular(rows, self.comp_of_row, self.n_comp, rowsum)
             if null.any():
                 self.range = RangeCheck(rows, self.comp_of_row, null, Collective(self.mat.getComm()))
         self.null_components = int(null.sum())
