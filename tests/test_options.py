@@ -92,3 +92,22 @@ def test_nonconvergence_exits_nonzero(tiny_ckpt):
     code, out = run_example("-options_file", "options/cg_none.opts", "-n", 1024, "-ksp_max_it", 5)
     assert code == 1
     assert field(out, "converged reason") == "DIVERGED_ITS"
+
+
+def test_options_read_where_set_and_the_defaults_where_none_is():
+    """HTPOptions.from_petsc: the defaults, one shared object, where no -<prefix>htp_ option is set (in any case, as
+    PETSc matches names); the values set otherwise, validated."""
+    from petsc4py import PETSc
+
+    from petsc_htp.pcoptions import HTPOptions
+
+    assert HTPOptions.from_petsc("po_") is HTPOptions.from_petsc("pq_") and HTPOptions.from_petsc("po_") == HTPOptions()
+    db = PETSc.Options()
+    db.setValue("-PO_htp_Leaf", 16)
+    try:
+        assert HTPOptions.from_petsc("po_").leaf == 16 and HTPOptions.from_petsc("pq_").leaf == 0
+        db.setValue("-po_htp_leaf", 1)
+        with pytest.raises(ValueError, match="leaf must be 0"):
+            HTPOptions.from_petsc("po_")
+    finally:
+        db.delValue("-po_htp_leaf")

@@ -82,3 +82,7 @@ def test_the_symmetry_probe_is_the_same_vector_on_any_split():
     assert np.array_equal(whole, parts)
     assert abs(whole.mean()) < 0.01 and abs(whole.std() - 12 ** -0.5) < 0.01 and whole.min() >= -0.5 and whole.max() < 0.5
     assert abs(np.corrcoef(whole, probe_values(0, 100000, 2))[0, 1]) < 0.02
+    pair = probe_values(333, 50001, (1, 2))                      # several salts: one row each, as made apart
+    assert pair.shape == (2, 49668) and np.array_equal(pair[0], whole[333:50001])
+    assert np.array_equal(pair[1], probe_values(333, 50001, 2))
+
