@@ -101,17 +101,18 @@ class KeptColumns:
         self.copy.setNearNullSpace(P.getNearNullSpace())
         self.copy.setOption(PETSc.Mat.Option.SYMMETRIC, True)
 
-    def start(self, ksp, b, x):
+    def start(self, ksp, b, x, aij=None):
         """Before a KSPSolve of :data:`STARTED_KSPS`: x_D = D^-1 b_D and :attr:`started`, D the Amat's diagonal now
         (a reused preconditioner's may be older); for an Amat other than the Pmat (a matrix-free Jacobian beside an
-        assembled one), the Pmat's, where the Amat's rows there hold just it (:meth:`_diagonal_rows`). Returns the KSP
-        settings this changed ({'guess': its initial-guess flag}), else None."""
+        assembled one), the Pmat's, where the Amat's rows there hold just it (:meth:`_diagonal_rows`; ``aij``: the
+        Pmat's AIJ copy where it is of another type). Returns the KSP settings this changed ({'guess': its
+        initial-guess flag}), else None."""
         self.started = False
         amat, pmat = ksp.getOperators()
         if ksp.getType() not in STARTED_KSPS:
             return None
         if self.rows is None:
-            return self._alone_start(ksp, amat, pmat, b, x)
+            return self._alone_start(ksp, amat, pmat, b, x, pmat if aij is None else aij)
         if amat.handle == pmat.handle:
             amat.getDiagonal(self.t)
             d = self.t.array_r[self.rows].copy()
@@ -121,15 +122,16 @@ class KeptColumns:
             return None
         return self._set(ksp, self.rows, b, x, d)
 
-    def _alone_start(self, ksp, amat, pmat, b, x):
-        """A symmetric Pmat whose Dirichlet rows couple to nothing (:attr:`alone`) beside an Amat that keeps their
-        columns (the MatZeroRows form beside the MatZeroRowsColumns one): x_D = D^-1 b_D where the Amat's rows there
-        hold just D, so that CG sees the Amat as the Pmat (collective)."""
+    def _alone_start(self, ksp, amat, pmat, b, x, aij):
+        """A symmetric Pmat whose Dirichlet rows couple to nothing (:attr:`alone`, found at the first such solve in
+        ``aij``, the Pmat or its AIJ copy) beside an Amat that keeps their columns (the MatZeroRows form beside the
+        MatZeroRowsColumns one): x_D = D^-1 b_D where the Amat's rows there hold just D, so that CG sees the Amat as
+        the Pmat (collective)."""
         if amat.handle == pmat.handle:
             return None
-        if self.alone is None:                  # found at the first such solve
-            with local_rows(pmat) as rows:
-                self.alone = np.flatnonzero(decoupled_rows(rows, pmat.getOwnershipRange()[0]))
+        if self.alone is None:
+            with local_rows(aij) as rows:
+                self.alone = np.flatnonzero(decoupled_rows(rows, aij.getOwnershipRange()[0]))
         if not self.coll.any(self.alone.size > 0):
             return None
         diag = pmat.getDiagonal()

@@ -231,7 +231,7 @@ class HTPPC(Inspection):
         self._changed, self._started = give_back(ksp, self._changed), time.perf_counter()
         check_layout(pc.getOperators()[0], b, x)
         _ready(self, pc, ksp)
-        self._changed = self.columns.start(ksp, b, x)         # x0 = D^-1 b on such rows: before the variant's
+        self._changed = self.columns.start(ksp, b, x, self._aij)     # x0 = D^-1 b on such rows: before the variant's
         if not self.fallback_active:
             amat, pmat = pc.getOperators()
             stale = ((self._values is not None and pmat.stateGet() != self._values[1])

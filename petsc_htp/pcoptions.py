@@ -195,4 +195,5 @@ class HTPOptions:
                 for name, kind, default, text in MULTILEVEL_HELP]
         return "\n".join(out)
 
-_DEFAULTS = HTPOptions()      # every option at its default (validated as written)
+
+_DEFAULTS = HTPOptions().validate()      # every option at its default

@@ -17,7 +17,7 @@ import numpy as np
 from .collective import Collective
 
 ASYMMETRY = 1e-8        # |x^T A y - y^T A x| / (|x| |y| max_i sum_j |a_ij|) above this: not symmetric
-NONE = np.iinfo(np.int64).max   # no such row on this rank (the ranks' least first row)
+NO_ROW = np.iinfo(np.int64).max     # no such row on this rank (the ranks' least first row)
 
 PROBLEMS = ("a rank without rows", "NaN or Inf entries", "empty rows", "missing or zero diagonal entries",
             "negative diagonal entries")
@@ -69,7 +69,7 @@ def check_matrix(mat, rows, empty_ok=False) -> None:
            np.flatnonzero(d == 0),
            np.flatnonzero(d < 0)]
     counts = np.array([b.size for b in bad] + [_split_apart(mat, n), rows.nnz], dtype=np.int64)
-    first = np.array([b[0] + start if b.size else NONE for b in bad] + [0, 0], dtype=np.int64)
+    first = np.array([b[0] + start if b.size else NO_ROW for b in bad] + [0, 0], dtype=np.int64)
     coll = Collective(mat.getComm())
     counts, first = coll.sum_array(counts), coll.min_array(first)
     if counts[-1] == 0:
@@ -119,20 +119,21 @@ def check_symmetry(mat, dirichlet=None):
     (:mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged symmetric
     (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc keeps the
     flag through MatZeroRows. Collective."""
-    coll = Collective(mat.getComm())
+    coll, rows, count = Collective(mat.getComm()), None, 0
     known, symmetric = mat.isSymmetricKnown()
     if known and symmetric:
-        dirichlet = None if dirichlet is None else dirichlet()
-        if not coll.sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet))):
+        rows = None if dirichlet is None else dirichlet()
+        count = coll.sum(0 if rows is None else int(np.count_nonzero(rows)))
+        if not count:
             return None
     gap, scale = _asymmetry(mat)
     if gap <= ASYMMETRY * scale:
         return None
-    if callable(dirichlet):
-        dirichlet = dirichlet()
-    count = coll.sum(0 if dirichlet is None else int(np.count_nonzero(dirichlet)))
-    if count and _asymmetry(mat, dirichlet)[0] <= ASYMMETRY * scale:
-        return dirichlet
+    if rows is None and dirichlet is not None:
+        rows = dirichlet()
+        count = coll.sum(int(np.count_nonzero(rows)))
+    if count and _asymmetry(mat, rows)[0] <= ASYMMETRY * scale:
+        return rows
     if known and symmetric:         # its word for the rest
         return None
     raise MatrixError(f"the matrix is not symmetric (random probe |x^T A y - y^T A x| = {gap / scale:.1e} of "
@@ -178,5 +179,4 @@ def probe_values(start, end, salt) -> np.ndarray:
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     z ^= z >> np.uint64(31)
-    z = (z >> np.uint64(11)).astype(np.float64) / float(1 << 53) - 0.5
-    return z
+    return (z >> np.uint64(11)).astype(np.float64) / float(1 << 53) - 0.5

@@ -158,8 +158,11 @@ except PETSc.Error:
     z.axpy(-1.0, b)
     PETSc.Sys.Print(f"refused yes, previous M {z.norm() / b.norm():.3e}")
 # an Amat other than the Pmat whose Dirichlet rows hold just the Pmat's diagonal (a copy; MatZeroRowsColumns'; the
-# MatZeroRows form beside the MatZeroRowsColumns one as Pmat): started
-for amat, pmat, rhs, name in ((A.duplicate(copy=True), A, b, "amatcopy"), (S, A, c, "amatsym"), (A, S, b, "pmatsym")):
+# MatZeroRows form beside the MatZeroRowsColumns one as Pmat, also a BAIJ one, whose rows HTPPC reads in its AIJ copy):
+# started
+SB = S.convert("baij")
+for amat, pmat, rhs, name in ((A.duplicate(copy=True), A, b, "amatcopy"), (S, A, c, "amatsym"), (A, S, b, "pmatsym"),
+                              (A, SB, b, "pmatbaij")):
     prefix = f"{name}_"
     for key, value in {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-8, "ksp_max_it": 300,
                        "pc_type": "python", "pc_python_type": "petsc_htp.HTPPC", "htp_direct_max": 0}.items():

@@ -150,8 +150,9 @@ def test_a_regular_m_matrix_whose_couplings_span_many_orders_keeps_its_small_piv
     """Edge weights exp(7 N(0, 1)) on 100^2 cells: the row sums vanish against the largest diagonal entry, yet the
     signs and the walls' row sums show the matrix regular (nullspace.m_regular), so nothing is grounded and the banded
     factor serves as it is: CG stops after at most 2 iterations at the matrix's precision (PETSc's Cholesky reaches
-    6e-7; grounded, 19 pivots and 308 iterations). A Neumann matrix, its D A D and one with a positive coupling are
-    not taken for regular."""
+    6.5e-7; grounded, 354 iterations: results/robust-20261128/edges.txt). A Neumann matrix, its D A D and one with a
+    positive coupling are not taken for regular. Where LAPACK stops at a pivot of zero (w + 1 stored as w = 2^56: a row
+    sum below zero by rounding, taken for regular), the row is grounded as before, and the factor is complete."""
     A, b = _edges(100, 7.0)
     mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
                                               A.data), comm=PETSc.COMM_SELF)
@@ -165,6 +166,29 @@ def test_a_regular_m_matrix_whose_couplings_span_many_orders_keeps_its_small_piv
     for M, regular in ((A, True), (N, False), (sp.diags(d) @ N @ sp.diags(d), False), (positive, False)):
         M = sp.csr_matrix(M)
         assert nullspace.m_regular(M, *reversed(nullspace.graph_components(M))).all() == regular
+    w = 2.0 ** 56
+    S = sp.csr_matrix(np.array([[w, -w, 0.0], [-w, w + 1.0, -1.0], [0.0, -1.0, 2.0]]))
+    assert nullspace.m_regular(S, np.zeros(3, dtype=np.int64), 1).all()
+    band = Band(S)
+    info, grounded = band.factor(S.data)
+    out = np.zeros(3)
+    band.solve(np.array([0.0, 0.0, 1.0]), out)
+    G = S + sp.diags([0.0, w, 0.0])
+    assert info == 0 and list(grounded) == [1] and np.abs(G @ out - [0.0, 0.0, 1.0]).max() <= 1e-12
+
+
+def test_a_chain_numbered_in_reversed_blocks_takes_the_reverse_cuthill_mckee_order():
+    """Its own bandwidth (63) is within the square root of its 4 096 rows, but its rows span 2: RCM's order (width 1)
+    serves; a grid numbered row by row, whose rows span twice its width, keeps its own order without the search."""
+    n = 4096
+    p = np.concatenate([np.arange(k, k + 32)[::-1] for k in range(0, n, 32)])
+    chain = sp.csr_matrix(sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tocsr()[p][:, p])
+    chain.sort_indices()
+    assert own_width(chain) == 63 and ordering(chain)[3] == 1
+    grid = sp.csr_matrix(foreign.dmda(2, 64, 1e3, 0)[0])
+    grid.sort_indices()
+    perm, _, _, width = ordering(grid)
+    assert width == own_width(grid) == 64 and np.array_equal(perm, np.arange(grid.shape[0]))
 
 
 def test_a_singular_chain_on_two_ranks_is_grounded_in_its_band(tmp_path):

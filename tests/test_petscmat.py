@@ -85,4 +85,3 @@ def test_the_symmetry_probe_is_the_same_vector_on_any_split():
     pair = probe_values(333, 50001, (1, 2))                      # several salts: one row each, as made apart
     assert pair.shape == (2, 49668) and np.array_equal(pair[0], whole[333:50001])
     assert np.array_equal(pair[1], probe_values(333, 50001, 2))
-

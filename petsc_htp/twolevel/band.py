@@ -26,14 +26,14 @@ EVERY_AFTER = 2        # ... and from the third on the last row of every compone
 
 def ordering(rows, reorder=True) -> tuple:
     """(permutation of the symmetric pattern of CSR ``rows``, each stored entry's row and column in that order,
-    bandwidth): the rows' own order where its bandwidth is at most :data:`NATURAL_WIDTH` or the square root of the
-    rows (a 2-D grid's row by row, whose fronts RCM's do not undercut: the DMDA's 1 024 rows kept their width 32,
-    after a search as long as the factor), or no more than reverse Cuthill-McKee's, or where not ``reorder``; else
-    RCM's."""
+    bandwidth): the rows' own order where its bandwidth is at most :data:`NATURAL_WIDTH`, or at most the square root
+    of the rows where most rows span it (:func:`_spanned`: a 2-D grid's row by row, whose fronts RCM's do not undercut;
+    the DMDA's 1 024 rows kept their width 32, after a search as long as the factor), or no more than reverse
+    Cuthill-McKee's, or where not ``reorder``; else RCM's."""
     n = rows.shape[0]
     qi, qj = np.repeat(np.arange(n, dtype=rows.indices.dtype), np.diff(rows.indptr)), rows.indices
     natural = own_width(rows)
-    if natural <= NATURAL_WIDTH or natural * natural <= n or not reorder:
+    if natural <= NATURAL_WIDTH or not reorder or (natural * natural <= n and _spanned(rows, natural)):
         return np.arange(n), qi, qj, natural
     perm = reverse_cuthill_mckee(rows)
     inverse = np.empty(n, dtype=perm.dtype)
@@ -54,6 +54,17 @@ def own_width(rows) -> int:
         return int(max((full - first).max(), (last - full).max(), 0))
     qi = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype), np.diff(rows.indptr))
     return int(np.abs(qi - rows.indices).max())
+
+
+def _spanned(rows, width) -> bool:
+    """Whether the median row of the CSR ``rows`` reaches at least ``width`` from its first stored column to its last
+    (a grid's row by row: twice its width; a chain numbered in reversed blocks, whose band RCM shrinks, only 2)."""
+    full = np.flatnonzero(rows.indptr[:-1] < rows.indptr[1:])
+    if not full.size:
+        return False
+    starts = rows.indptr[full]
+    return bool(np.median(np.maximum.reduceat(rows.indices, starts) - np.minimum.reduceat(rows.indices, starts))
+                >= width)
 
 
 class Band:
@@ -89,9 +100,9 @@ class Band:
         diagonal entry raised by its own magnitude, and the values are factored again; where at most one row is given
         and every row sum vanishes, the last row in the band's order is grounded first instead (a connected graph's
         one null pivot, as before rows were given: the Neumann square's iterations stay), and after
-        :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Where no more
-        than one row is given and the values make a nonsingular M-matrix (:func:`.nullspace.m_regular`), nothing is
-        grounded and small pivots stay as they are. Returns (info: k > 0 where the k-th pivot in the band's order is
+        :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Where the values
+        make a nonsingular M-matrix (:func:`.nullspace.m_regular`), the last row is not grounded first, and where
+        nothing is grounded and LAPACK factored every column, small pivots stay as they are. Returns (info: k > 0 where the k-th pivot in the band's order is
         negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
         factorisations; else 0 | the rows grounded, in the original order)."""
         values = data[self.lower]
@@ -106,10 +117,11 @@ class Band:
         elif given:
             grounded = np.unique(self.position[ground])
         for attempt in range(GROUND_MAX):
-            info, null = self._attempt(values, diag, grounded)
+            info, null, done = self._attempt(values, diag, grounded)
             if info > 0 or null.size == 0:
                 return info, self.perm[grounded]
-            if attempt == 0 and not grounded.size and (self._regular(data, rowsum) if regular is None else regular):
+            if done and attempt == 0 and not grounded.size and (
+                    self._regular(data, rowsum) if regular is None else regular):
                 return 0, self.perm[grounded]           # small pivots of a regular matrix: its factor as it is
             if attempt == EVERY_AFTER:
                 null = np.union1d(null, self._component_ends(data))
@@ -119,16 +131,17 @@ class Band:
     def _attempt(self, values, diag, grounded) -> tuple:
         """One factorisation of the band of ``values`` (the lower band's entries) with the rows ``grounded`` (band
         order) raised by ``diag``, made afresh (no copy of a band kept for another try): (LAPACK's info where a pivot
-        is negative beyond :data:`NULL_PIVOT`, else 0 | the null pivots found, band order)."""
+        is negative beyond :data:`NULL_PIVOT`, else 0 | the null pivots found, band order | whether LAPACK factored
+        every column: a pivot it stopped at, not positive, leaves the columns after it unfactored)."""
         ab = np.zeros(self.shape[0] * self.shape[1])
         ab[self.at] = values
         ab[self.diag_at[grounded]] += diag[grounded]
         self.c, info = lapack.dpbtrf(ab.reshape(self.shape, order="F"), lower=1, overwrite_ab=1)
         if info > 0:                                            # LAPACK leaves the failed pivot in place
             if not self.c[0, info - 1] > -NULL_PIVOT * diag[info - 1]:
-                return info, np.zeros(0, dtype=np.int64)
-            return 0, np.array([info - 1])
-        return 0, np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag)
+                return info, np.zeros(0, dtype=np.int64), False
+            return 0, np.array([info - 1]), False
+        return 0, np.flatnonzero(self.c[0] ** 2 < NULL_PIVOT * diag), True
 
     def _regular(self, data, rowsum) -> bool:
         """Whether the values ``data`` make a nonsingular M-matrix by their signs and row sums
