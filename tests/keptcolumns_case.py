@@ -11,6 +11,7 @@ petsc4py.init(sys.argv[:1])
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402  (the options name petsc_htp.HTPPC: PCPYTHON imports it from this checkout)
+from petsc_htp import petscmat  # noqa: E402
 
 comm, side = PETSc.COMM_WORLD, 48
 N = side * side
@@ -172,10 +173,17 @@ for amat, pmat, rhs, name in ((A.duplicate(copy=True), A, b, "amatcopy"), (S, A,
     ksp.setOperators(amat, pmat)
     ksp.setFromOptions()
     sol = amat.createVecRight()
-    ksp.solve(rhs, sol)
+    ksp.setUp()
+    made = petscmat._converted                  # AIJ copies made in the solve itself: none (the set-up's is read)
+    copies = []
+    petscmat._converted = lambda mat: copies.append(mat.getType()) or made(mat)
+    try:
+        ksp.solve(rhs, sol)
+    finally:
+        petscmat._converted = made
     sol.axpy(-1.0, x_true)
     PETSc.Sys.Print(f"pmat {name} its {ksp.getIterationNumber()} reason {ksp.getConvergedReason()} error "
-                    f"{sol.norm() / x_true.norm():.3e}")
+                    f"{sol.norm() / x_true.norm():.3e} copies {len(copies)}")
     ksp.destroy()
     sol.destroy()
 # an Amat whose product raises (a shell): the probe's failure leaves no work vector of HTPPC's locked

@@ -23,7 +23,8 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
     preconditioner reused on new Dirichlet diagonals starts on them; a refused new operator leaves the previous M
     whole; MAT_SYMMETRIC kept through MatZeroRows does not hide those rows; an Amat other than the Pmat whose rows
     there hold just that diagonal is started too (also the MatZeroRows form beside the MatZeroRowsColumns one as
-    Pmat, AIJ or BAIJ), and one whose product raises leaves HTPPC usable; nothing lands in
+    Pmat, AIJ or BAIJ, whose rows are read in HTPPC's AIJ copy: no MatConvert in the solve), and one whose product
+    raises leaves HTPPC usable; nothing lands in
     PETSc's garbage."""
     out = subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(CASE)], capture_output=True, text=True,
                          timeout=600)
@@ -53,9 +54,9 @@ def test_matzerorows_dirichlet_rows_solve_as_matzerorowscolumns_ones(ranks):
     assert float(re.search(r"^after abort (\S+)$", text, re.M).group(1)) <= 1e-12, text
     assert float(re.search(r"^refused yes, previous M (\S+)$", text, re.M).group(1)) <= 1e-12, text
     assert re.findall(r"Total entries: (\d+)", text) == ["0"] * ranks, text
-    pmat = re.findall(r"^pmat (\S+) its (\d+) reason (\d+) error (\S+)$", text, re.M)
+    pmat = re.findall(r"^pmat (\S+) its (\d+) reason (\d+) error (\S+) copies (\d+)$", text, re.M)
     assert [m[0] for m in pmat] == ["amatcopy", "amatsym", "pmatsym", "pmatbaij"], text
-    assert all(int(m[1]) <= 25 and float(m[3]) <= 1e-7 for m in pmat), pmat
+    assert all(int(m[1]) <= 25 and float(m[3]) <= 1e-7 and m[4] == "0" for m in pmat), pmat
     failing = re.search(r"^after a failing Amat its (\d+) reason (\d+) PCApply (\S+)$", text, re.M)
     assert failing and int(failing.group(1)) <= 25 and float(failing.group(3)) <= 1.0, text
 

@@ -102,9 +102,9 @@ class Band:
         one null pivot, as before rows were given: the Neumann square's iterations stay), and after
         :data:`EVERY_AFTER` more the last row of every component of the graph (many null components). Where the values
         make a nonsingular M-matrix (:func:`.nullspace.m_regular`), the last row is not grounded first, and where
-        nothing is grounded and LAPACK factored every column, small pivots stay as they are. Returns (info: k > 0 where the k-th pivot in the band's order is
-        negative beyond that, the matrix indefinite; -1 where null pivots remain after :data:`GROUND_MAX`
-        factorisations; else 0 | the rows grounded, in the original order)."""
+        nothing is grounded and LAPACK factored every column, small pivots stay as they are. Returns (info: k > 0
+        where the k-th pivot in the band's order is negative beyond that, the matrix indefinite; -1 where null pivots
+        remain after :data:`GROUND_MAX` factorisations; else 0 | the rows grounded, in the original order)."""
         values = data[self.lower]
         diag = np.zeros(self.shape[1])                          # |a_ii| in the band's order
         diag[self.on_col] = np.abs(values[self.on])
