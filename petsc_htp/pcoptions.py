@@ -131,7 +131,7 @@ class HTPOptions:
 
         lead = (prefix + "htp_").lower()
         if not any(name.lower().startswith(lead) for name in PETSc.Options().getAll()):
-            return _DEFAULTS        # none set: the defaults (a tenth of the reads' time, which a small solve feels)
+            return _DEFAULTS        # none set: the defaults, without a PETSc call per option
         db = PETSc.Options(prefix + "htp_")
         get = {str: db.getString, float: db.getReal, int: db.getInt, bool: db.getBool}
         values = {f.name: get[type(f.default)](f.name, f.default) for f in fields(cls)}

@@ -27,8 +27,8 @@ EVERY_AFTER = 2        # ... and from the third on the last row of every compone
 def ordering(rows, reorder=True) -> tuple:
     """(permutation of the symmetric pattern of CSR ``rows``, each stored entry's row and column in that order,
     bandwidth): the rows' own order where its bandwidth is at most :data:`NATURAL_WIDTH`, or at most the square root
-    of the rows where most rows span it (:func:`_spanned`: a 2-D grid's row by row, whose fronts RCM's do not undercut;
-    the DMDA's 1 024 rows kept their width 32, after a search as long as the factor), or no more than reverse
+    of the rows where most rows span it (:func:`_spanned`: a 2-D grid's row by row, whose fronts RCM's do not undercut:
+    the foreign study's grids of 1 024 to 29 929 rows, ``results/small-20261128/widths.txt``), or no more than reverse
     Cuthill-McKee's, or where not ``reorder``; else RCM's."""
     n = rows.shape[0]
     qi, qj = np.repeat(np.arange(n, dtype=rows.indices.dtype), np.diff(rows.indptr)), rows.indices

@@ -158,11 +158,10 @@ def m_regular(A, comp_of_row, n_comp, rowsum=None) -> np.ndarray:
     """Boolean (C,): the components of the square CSR ``A`` (``comp_of_row``, ``n_comp``; ``rowsum``: its row sums,
     where found) that are nonsingular M-matrices by their signs and row sums alone: positive diagonal, no positive
     coupling, no row sum below -:data:`SUM_ROUNDING` times its entries (at least 16) of the row's sum of |a_ij|
-    (rounding's bound), and some row sum above :data:`DOMINANT`
-    of it (an irreducibly diagonally dominant matrix is nonsingular). NULL_TOL's test, against the largest diagonal
-    entry, takes such a component for null where its couplings span many orders (log-normal edge weights
-    exp(7 N(0, 1)) on 100^2 cells: its banded factor grounded and CG took 354 iterations, 1 without:
-    ``results/robust-20261128/edges.txt``)."""
+    (rounding's bound), and some row sum above :data:`DOMINANT` of it (an irreducibly diagonally dominant matrix is
+    nonsingular). NULL_TOL's test, against the largest diagonal entry, takes such a component for null where its
+    couplings span many orders (log-normal edge weights exp(7 N(0, 1)) on 100^2 cells: its banded factor grounded and
+    CG took 354 iterations, 1 without: ``results/robust-20261128/edges.txt``)."""
     n = A.shape[0]
     row = np.repeat(np.arange(n), np.diff(A.indptr))
     rowsum = row_sums(A.indptr, A.data) if rowsum is None else rowsum
