@@ -151,8 +151,9 @@ def test_a_regular_m_matrix_whose_couplings_span_many_orders_keeps_its_small_piv
     signs and the walls' row sums show the matrix regular (nullspace.m_regular), so nothing is grounded and the banded
     factor serves as it is: CG stops after at most 2 iterations at the matrix's precision (PETSc's Cholesky reaches
     6.5e-7; grounded, 354 iterations: results/robust-20261128/edges.txt). A Neumann matrix, its D A D, one with a
-    positive coupling and one whose row sums fall 1e-13 of their size below zero are not taken for regular. Where LAPACK stops at a pivot of zero (w + 1 stored as w = 2^56: a row
-    sum below zero by rounding, taken for regular), the row is grounded as before, and the factor is complete."""
+    positive coupling and one whose row sums fall 1e-13 of their size below zero (beyond rounding) are not taken for
+    regular. Where LAPACK stops at a pivot of zero (w + 1 stored as w = 2^56: a row sum below zero by rounding, taken
+    for regular), the row is grounded as before, and the factor is complete."""
     A, b = _edges(100, 7.0)
     mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
                                               A.data), comm=PETSc.COMM_SELF)
@@ -163,9 +164,9 @@ def test_a_regular_m_matrix_whose_couplings_span_many_orders_keeps_its_small_piv
     d = 10.0 ** np.random.default_rng(0).uniform(-2, 2, N.shape[0])
     positive = sp.csr_matrix(A[:144, :144])
     positive[0, 1] = positive[1, 0] = 1e-3
-    short = sp.csr_matrix(sp.diags([-np.ones(99), 2 * np.ones(100), -np.ones(99)], [-1, 0, 1]))    # walls at both
-    short[50, 51] = short[51, 50] = -(1 + 1e-13)          # ends; two row sums 1e-13 of their size below zero: no
-    for M, regular in ((A, True), (N, False), (sp.diags(d) @ N @ sp.diags(d), False), (positive, False),   # rounding's
+    short = sp.csr_matrix(sp.diags([-np.ones(99), 2 * np.ones(100), -np.ones(99)], [-1, 0, 1]))
+    short[50, 51] = short[51, 50] = -(1 + 1e-13)
+    for M, regular in ((A, True), (N, False), (sp.diags(d) @ N @ sp.diags(d), False), (positive, False),
                        (short, False)):
         M = sp.csr_matrix(M)
         assert nullspace.m_regular(M, *reversed(nullspace.graph_components(M))).all() == regular
