@@ -114,11 +114,11 @@ def check_attached(mat, coords, density) -> None:
 def check_symmetry(mat, dirichlet=None):
     """Raise :class:`MatrixError` (every rank) when a probe (:func:`probe_values`) shows ``mat`` is not symmetric,
     but where the asymmetry is only that of Dirichlet rows whose couplings the other rows keep (MatZeroRows;
-    ``dirichlet()``: this rank's rows holding just their diagonal, boolean, :func:`.twolevel.aggregation.decoupled_rows`,
-    asked only where the answer needs them, given on every rank or on none), return them
-    (:mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged symmetric
-    (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc keeps the
-    flag through MatZeroRows. Collective."""
+    ``dirichlet()``: this rank's rows holding just their diagonal, boolean,
+    :func:`.twolevel.aggregation.decoupled_rows`, asked only where the answer needs them, given on every rank or on
+    none), return them (:mod:`petsc_htp.keptcolumns` drops their columns); None when symmetric. A matrix flagged
+    symmetric (MAT_SYMMETRIC) is taken at its word but for rows holding just their diagonal, which are probed: PETSc
+    keeps the flag through MatZeroRows. Collective."""
     coll, rows, count = Collective(mat.getComm()), None, 0
     known, symmetric = mat.isSymmetricKnown()
     if known and symmetric:
