@@ -49,22 +49,27 @@ def own_width(rows) -> int:
     if not rows.nnz:
         return 0
     if rows.has_sorted_indices:
-        full = np.flatnonzero(rows.indptr[:-1] < rows.indptr[1:])
-        first, last = rows.indices[rows.indptr[full]], rows.indices[rows.indptr[full + 1] - 1]
+        full, first, last = _row_ends(rows)
         return int(max((full - first).max(), (last - full).max(), 0))
     qi = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype), np.diff(rows.indptr))
     return int(np.abs(qi - rows.indices).max())
 
 
+def _row_ends(rows) -> tuple:
+    """(the CSR ``rows``' rows that hold entries, each one's least and largest column): read at each row's ends where
+    the columns are sorted, else by a reduction over its entries."""
+    full = np.flatnonzero(rows.indptr[:-1] < rows.indptr[1:])
+    starts = rows.indptr[full]
+    if rows.has_sorted_indices:
+        return full, rows.indices[starts], rows.indices[rows.indptr[full + 1] - 1]
+    return full, np.minimum.reduceat(rows.indices, starts), np.maximum.reduceat(rows.indices, starts)
+
+
 def _spanned(rows, width) -> bool:
     """Whether the median row of the CSR ``rows`` reaches at least ``width`` from its first stored column to its last
     (a grid's row by row: twice its width; a chain numbered in reversed blocks, whose band RCM shrinks, only 2)."""
-    full = np.flatnonzero(rows.indptr[:-1] < rows.indptr[1:])
-    if not full.size:
-        return False
-    starts = rows.indptr[full]
-    return bool(np.median(np.maximum.reduceat(rows.indices, starts) - np.minimum.reduceat(rows.indices, starts))
-                >= width)
+    full, first, last = _row_ends(rows)
+    return bool(full.size) and bool(np.median(last - first) >= width)
 
 
 class Band:
@@ -146,15 +151,18 @@ class Band:
     def _regular(self, data, rowsum) -> bool:
         """Whether the values ``data`` make a nonsingular M-matrix by their signs and row sums
         (:func:`.nullspace.m_regular`)."""
+        A, count, label = self._components(data)
+        return bool(m_regular(A, label, count, rowsum).all())
+
+    def _components(self, data) -> tuple:
+        """(the values ``data`` as CSR, the number of connected components of their nonzero entries, each row's)."""
         n = self.shape[1]
         A = sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
-        count, label = graph_components(A)
-        return bool(m_regular(A, label, count, rowsum).all())
+        return (A,) + graph_components(A)
 
     def _component_ends(self, data) -> np.ndarray:
         """The last row (band order) of each connected component of the nonzero entries ``data``'s graph."""
-        n = self.shape[1]
-        count, label = graph_components(sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n)))
+        _, count, label = self._components(data)
         ends = np.full(count, -1, dtype=np.int64)
         np.maximum.at(ends, label, self.position)
         return ends

@@ -21,9 +21,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from .csr import row_sums
+from .nullspace import STRICT      # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
 
 ESTIMATE = "esteig_"     # the options prefix of KSPCHEBYSHEV's eigenvalue estimate, a KSP on the same PC
-STRICT = 1e-12          # |row sum| <= STRICT x the sum of the row's |a_ij| on every row of a null component
 
 
 def strictly_null(rows, comp_of_row, null, coll, absolute) -> np.ndarray:

@@ -20,7 +20,8 @@ from .amgkernels import kernels
 from .csr import compact, row_sums
 
 NULL_TOL = 1e-10        # |row sum| <= NULL_TOL * max |a_ii| on every row of a component: A 1_c = 0
-DOMINANT = 1e-12        # a row sum beyond this share of the row's sum of |a_ij|: no rounding's (:func:`m_regular`) ...
+STRICT = 1e-12          # a row sum beyond this share of the row's sum of |a_ij|: no rounding's (:func:`m_regular`,
+#                         and :mod:`.consistency`'s null components: every row sum within it) ...
 SUM_ROUNDING = 2 * np.finfo(float).eps      # ... and within this share of it below 0, times the row's entries (at
 #                                             least 16): a vanishing one's rounding
 
@@ -158,7 +159,7 @@ def m_regular(A, comp_of_row, n_comp, rowsum=None) -> np.ndarray:
     """Boolean (C,): the components of the square CSR ``A`` (``comp_of_row``, ``n_comp``; ``rowsum``: its row sums,
     where found) that are nonsingular M-matrices by their signs and row sums alone: positive diagonal, no positive
     coupling, no row sum below -:data:`SUM_ROUNDING` times its entries (at least 16) of the row's sum of |a_ij|
-    (rounding's bound), and some row sum above :data:`DOMINANT` of it (an irreducibly diagonally dominant matrix is
+    (rounding's bound), and some row sum above :data:`STRICT` of it (an irreducibly diagonally dominant matrix is
     nonsingular). NULL_TOL's test, against the largest diagonal entry, takes such a component for null where its
     couplings span many orders (log-normal edge weights exp(7 N(0, 1)) on 100^2 cells: its banded factor grounded and
     CG took 354 iterations, 1 without: ``results/robust-20261128/edges.txt``)."""
@@ -169,7 +170,7 @@ def m_regular(A, comp_of_row, n_comp, rowsum=None) -> np.ndarray:
     bad = (A.diagonal() <= 0) | (rowsum < -SUM_ROUNDING * np.maximum(np.diff(A.indptr), 16) * size)
     bad[row[(A.data > 0) & (A.indices != row)]] = True
     broken = np.bincount(comp_of_row[bad], minlength=n_comp) > 0
-    return (np.bincount(comp_of_row[rowsum > DOMINANT * size], minlength=n_comp) > 0) & ~broken
+    return (np.bincount(comp_of_row[rowsum > STRICT * size], minlength=n_comp) > 0) & ~broken
 
 
 def null_regions(A, regions) -> np.ndarray:
