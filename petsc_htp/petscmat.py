@@ -131,6 +131,21 @@ def _seqaij_view(handle, shape):
         lib.MatRestoreRowIJ(*ij)
 
 
+@contextlib.contextmanager
+def seqaij_values(mat):
+    """The stored values of the SEQAIJ ``mat`` as a writable view of PETSc's array for the duration of the block;
+    the Mat's state is raised at its end (MatSeqAIJRestoreArray: its SOR diagonal is then found again)."""
+    lib = _c_api()[0]
+    handle, values = ctypes.c_void_p(mat.handle), ctypes.POINTER(ctypes.c_double)()
+    if lib.MatSeqAIJGetArray(handle, ctypes.byref(values)):
+        raise RuntimeError("PETSc's MatSeqAIJGetArray failed on a seqaij matrix")
+    try:
+        nnz = int(mat.getInfo()["nz_used"])
+        yield np.ctypeslib.as_array(values, shape=(nnz,)) if nnz else np.zeros(0)
+    finally:
+        lib.MatSeqAIJRestoreArray(handle, ctypes.byref(values))
+
+
 def _mpiaij_rows(mat) -> sp.csr_matrix:
     """This rank's rows of the MPIAIJ ``mat`` (global columns, sorted), a copy of :func:`_mpiaij_local`'s: 15 ms for
     half the 1024^2 5-point matrix on each of two ranks, against 31 for petsc4py's row-by-row getValuesCSR."""

@@ -180,6 +180,37 @@ def test_leaves_in_reverse_cuthill_mckee_order_keep_the_coarse_rows_near_their_n
     mat.destroy()
 
 
+def test_the_reordered_copy_takes_new_values_by_its_map():
+    """New values of a pattern numbered at random reach the V-cycles' reordered copy through a map of its values
+    (:mod:`petsc_htp.multilevel.reordered`), found at the first new values: the copy is then MatCreateSubMatrix's of
+    the new values, entry for entry, and CG converges on it; a map is refused where the copy holds other entries."""
+    from petsc_htp.multilevel.reordered import value_map
+
+    A, b = CASES["fem_tri"](16384, 0)
+    mat = _mat(A)
+    reason, its, relres, ksp, _ = solve(A, b, mat=mat, htp_variant="multilevel", htp_direct_max=0)
+    setup = ksp.getPC().getPythonContext().setup
+    assert setup.refill is not None and not setup.refill.tried
+    ages = []
+    for frame in (1, 2, 3):               # kept leaves, or (more iterations than RENEW allows) new ones
+        B, _ = CASES["fem_tri"](16384, frame)
+        mat.setValuesCSR(B.indptr, B.indices, B.data)
+        mat.assemble()
+        reason, its, relres, ksp, _ = solve(B, b, mat=mat, ksp=ksp)
+        setup = ksp.getPC().getPythonContext().setup
+        assert reason > 0 and relres <= 1e-8, (reason, relres)
+        assert (setup.refill.take is not None) == (setup.age > 0)
+        ages.append(setup.age)
+        fresh = mat.createSubMatrix(setup.order, setup.order)
+        assert fresh.equal(setup.P)
+        fresh.destroy()
+    assert max(ages) > 0, ages
+    with local_rows(mat) as rows:
+        assert value_map(rows, setup.perm[::-1].copy(), setup.P) is None      # another order's copy
+    ksp.destroy()
+    mat.destroy()
+
+
 def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     """HTPPC as it comes takes the V-cycles for a bare 2-D graph of at least MIN_ROWS rows in a local order, and
     says so, and keeps them for new values on the same KSP; ``-htp_variant twolevel`` keeps the two-level

@@ -17,6 +17,7 @@ from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, banded_leaves, leaves, row_scaled
 from .moved import WeakInside
 from .ranges import Ranges
+from .reordered import Refill
 
 
 RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
@@ -60,7 +61,7 @@ class MultilevelPC:
         self.reorder = reorder
         _check(self.prefix, self.coarse_max, self.max_levels, self.damping, self.jacobi, self.smoother)
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
-        self.xw = None              # the projected input's work vector (:meth:`mult`)
+        self.xw = self.refill = None    # the projected input's work vector (:meth:`mult`); P's new values
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.renew, self.ranges = False, Ranges(mat)
         self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
@@ -88,7 +89,7 @@ class MultilevelPC:
             self.pc = None
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
-                    self.mat.createSubMatrix(self.order, self.order, submat=self.P)
+                    self.refill(rows)
                 self.hierarchy.refresh(rows if self.P is None else None)
             self._cycle(rows)
             self.age += 1
@@ -107,6 +108,7 @@ class MultilevelPC:
                 self.order = PETSc.IS().createGeneral((self.perm + self.mat.getOwnershipRange()[0]).astype(
                     PETSc.IntType), comm=self.mat.getComm())
                 A = self.P = self.mat.createSubMatrix(self.order, self.order)
+                self.refill = Refill(self.mat, self.order, self.perm, A)
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
@@ -225,7 +227,7 @@ class MultilevelPC:
         for obj in (self.pc, self.P, self.order, self.xp, self.yp, self.xw):
             if obj is not None:
                 obj.destroy()
-        self.pc = self.hierarchy = self.P = self.perm = self.order = self.xp = self.yp = self.xw = None
+        self.pc = self.hierarchy = self.P = self.perm = self.order = self.xp = self.yp = self.xw = self.refill = None
 
     def destroy(self):
         """Free the V-cycle and the hierarchy."""
