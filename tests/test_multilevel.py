@@ -181,32 +181,28 @@ def test_leaves_in_reverse_cuthill_mckee_order_keep_the_coarse_rows_near_their_n
 
 
 def test_the_reordered_copy_takes_new_values_by_its_map():
-    """New values of a pattern numbered at random reach the V-cycles' reordered copy through a map of its values
-    (:mod:`petsc_htp.multilevel.reordered`), found at the first new values: the copy is then MatCreateSubMatrix's of
-    the new values, entry for entry, and CG converges on it; a map is refused where the copy holds other entries."""
-    from petsc_htp.multilevel.reordered import value_map
-
+    """Rows numbered at random: on one rank the V-cycles' reordered copy is made from the operator's rows by a map of
+    its entries (:mod:`petsc_htp.multilevel.reordered`), and new values of the pattern reach it by that map: the copy
+    is MatCreateSubMatrix's of the operator's values, entry for entry, at the first solve and after new values that
+    keep the leaves or make them anew, and CG converges on each."""
     A, b = CASES["fem_tri"](16384, 0)
     mat = _mat(A)
-    reason, its, relres, ksp, _ = solve(A, b, mat=mat, htp_variant="multilevel", htp_direct_max=0)
-    setup = ksp.getPC().getPythonContext().setup
-    assert setup.refill is not None and not setup.refill.tried
-    ages = []
-    for frame in (1, 2, 3):               # kept leaves, or (more iterations than RENEW allows) new ones
+    ksp, ages = None, []
+    for frame in (0, 1, 2, 3):               # kept leaves, or (more iterations than RENEW allows) new ones
         B, _ = CASES["fem_tri"](16384, frame)
-        mat.setValuesCSR(B.indptr, B.indices, B.data)
-        mat.assemble()
-        reason, its, relres, ksp, _ = solve(B, b, mat=mat, ksp=ksp)
+        if frame:
+            mat.setValuesCSR(B.indptr, B.indices, B.data)
+            mat.assemble()
+        opts = {} if frame else {"htp_variant": "multilevel", "htp_direct_max": 0}
+        reason, its, relres, ksp, _ = solve(B, b, mat=mat, ksp=ksp, **opts)
         setup = ksp.getPC().getPythonContext().setup
         assert reason > 0 and relres <= 1e-8, (reason, relres)
-        assert (setup.refill.take is not None) == (setup.age > 0)
+        assert setup.reordered.take is not None and setup.P.handle == setup.reordered.P.handle
         ages.append(setup.age)
         fresh = mat.createSubMatrix(setup.order, setup.order)
         assert fresh.equal(setup.P)
         fresh.destroy()
     assert max(ages) > 0, ages
-    with local_rows(mat) as rows:
-        assert value_map(rows, setup.perm[::-1].copy(), setup.P) is None      # another order's copy
     ksp.destroy()
     mat.destroy()
 
@@ -369,7 +365,8 @@ def test_the_coarsest_operator_takes_its_band_unless_too_wide_indefinite_or_set_
 def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
     """2 ranks, the V-cycles chosen as it comes, then new values that change the nonzero mask on rank 0 only: both
     ranks make the V-cycles anew together (the choice had split: a hang) and CG converges; then the matrix times 2
-    on both: the finest leaves kept and the coarser levels made anew on both ranks, with the same iterations."""
+    on both: the finest leaves kept and the coarser levels made anew on both ranks, with the same iterations; each
+    rank's rows in their leaves' order (``-htp_ml_reorder 1``), the copy is made again by MatCreateSubMatrix."""
     mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     out = subprocess.run([mpiexec, "-n", "2", sys.executable, str(ROOT / "tests" / "multilevel_case.py")], cwd=ROOT,
                          capture_output=True, text=True, timeout=300)
@@ -380,6 +377,9 @@ def test_a_pattern_that_changed_on_one_rank_only_takes_one_method_on_both():
     third = re.search(r"^third (\w+) (\d+) (\S+) (\d+)$", out.stdout, re.M)      # values alone: a refresh on 2 ranks
     assert third and third.group(4) == "1" and float(third.group(3)) <= 1.01e-8, out.stdout
     assert abs(int(third.group(2)) - int(second.group(2))) <= 1, out.stdout
+    reordered = re.search(r"^reordered (\d+) (\S+) (\d+) (\w+)$", out.stdout, re.M)   # the copy made again on 2 ranks
+    assert reordered and float(reordered.group(2)) <= 1.01e-8 and reordered.group(3) == "1", out.stdout
+    assert reordered.group(4) == "True", out.stdout
 
 
 def test_new_values_of_a_singular_matrix_keep_the_smoothers_scale():

@@ -1,28 +1,33 @@
-"""New values for the copy of the operator whose rows the V-cycles take in their leaves' order: on one rank a gather
-of the operator's values into the copy's array, by a map found at the first new values, in place of PETSc's
-MatCreateSubMatrix, which searches every row's columns again (P1 triangles numbered at random, 65 536 rows: 6 against
-20 ms a frame; the map once 19-30 ms)."""
+"""The copy of the operator whose rows the V-cycles take in their leaves' order, and its new values: on one rank
+made from the operator's rows by one sort (where each of its entries lies among the operator's) and refilled by a
+gather into its array; on several ranks by PETSc's MatCreateSubMatrix, which searches every row's columns each time
+(P1 triangles numbered at random, 65 536 rows: 31 against 8 ms a frame, at 1M rows 1 083 against 141:
+``results/refill-20261128/refill.txt``)."""
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..petscmat import local_rows, seqaij_values
+from ..aijarrays import aij
+from ..petscmat import seqaij_values
 
 
-class Refill:
-    """``P`` = ``mat``[order, order] (``perm``: this rank's rows in that order, numbered on the rank) made anew for
-    ``mat``'s new values by :meth:`__call__`."""
+class Reordered:
+    """:attr:`P` = ``mat``[order, order] (``rows``: this rank's rows of ``mat``; ``perm``: its rows in that order,
+    numbered on the rank), made anew for new values by :meth:`refill`."""
 
-    def __init__(self, mat, order, perm, P):
-        self.mat, self.order, self.perm, self.P = mat, order, perm, P
-        self.take, self.tried = None, False
+    def __init__(self, mat, rows, perm, order):
+        self.mat, self.order, self.take = mat, order, None
+        if mat.getComm().getSize() > 1:
+            self.P = mat.createSubMatrix(order, order)
+            return
+        where = permuted_entries(rows, perm)
+        self.take = where.data
+        self.P = aij(mat.getComm(), mat.getSizes(), sp.csr_matrix((rows.data[self.take], where.indices, where.indptr),
+                                                                   shape=where.shape))
 
-    def __call__(self, rows):
-        """``P``'s values from ``mat``'s (this rank's ``rows``, the pattern ``P`` was made from): gathered by
-        :func:`value_map`'s map where it has one, else by MatCreateSubMatrix."""
-        if not self.tried:
-            self.take, self.tried = value_map(rows, self.perm, self.P), True
+    def refill(self, rows):
+        """:attr:`P`'s values from ``mat``'s new ones (this rank's ``rows``, the pattern it was made from)."""
         if self.take is None:
             self.mat.createSubMatrix(self.order, self.order, submat=self.P)
             return
@@ -30,17 +35,13 @@ class Refill:
             np.take(rows.data, self.take, out=values)
 
 
-def value_map(rows, perm, P):
-    """Where each stored value of ``P`` = A[perm][:, perm] lies among ``rows``' (A's, one rank, CSR), or None where
-    ``P`` is not SEQAIJ or does not store exactly A's entries so permuted."""
-    if P.getType() != "seqaij":
-        return None
+def permuted_entries(rows, perm) -> sp.csr_matrix:
+    """A[perm][:, perm] of one rank's whole matrix A (``rows``, CSR) with each entry's place among A's stored values
+    as its value (column indices sorted)."""
     n = rows.shape[0]
     inverse = np.empty(n, dtype=rows.indices.dtype)
     inverse[perm] = np.arange(n, dtype=inverse.dtype)
-    where = sp.csr_matrix((np.arange(1, rows.nnz + 1, dtype=np.int64), inverse[rows.indices], rows.indptr),
+    where = sp.csr_matrix((np.arange(rows.nnz, dtype=np.intp), inverse[rows.indices], rows.indptr),
                           shape=(n, n))[perm]       # the columns renumbered, then the rows taken in their new order
     where.sort_indices()
-    with local_rows(P) as mine:
-        same = np.array_equal(mine.indptr, where.indptr) and np.array_equal(mine.indices, where.indices)
-    return where.data - 1 if same else None
+    return where

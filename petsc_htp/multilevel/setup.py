@@ -17,7 +17,7 @@ from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, banded_leaves, leaves, row_scaled
 from .moved import WeakInside
 from .ranges import Ranges
-from .reordered import Refill
+from .reordered import Reordered
 
 
 RENEW = 1.5             # a solve taking this many times the first one's iterations on kept leaves renews them
@@ -61,7 +61,7 @@ class MultilevelPC:
         self.reorder = reorder
         _check(self.prefix, self.coarse_max, self.max_levels, self.damping, self.jacobi, self.smoother)
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
-        self.xw = self.refill = None    # the projected input's work vector (:meth:`mult`); P's new values
+        self.xw = self.reordered = None     # the projected input's work vector (:meth:`mult`); P and its values
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.renew, self.ranges = False, Ranges(mat)
         self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
@@ -89,7 +89,7 @@ class MultilevelPC:
             self.pc = None
             with phase("HTPLevels", self.times, "levels"):
                 if self.P is not None:
-                    self.refill(rows)
+                    self.reordered.refill(rows)
                 self.hierarchy.refresh(rows if self.P is None else None)
             self._cycle(rows)
             self.age += 1
@@ -107,8 +107,8 @@ class MultilevelPC:
                 # each take, twice a V-cycle
                 self.order = PETSc.IS().createGeneral((self.perm + self.mat.getOwnershipRange()[0]).astype(
                     PETSc.IntType), comm=self.mat.getComm())
-                A = self.P = self.mat.createSubMatrix(self.order, self.order)
-                self.refill = Refill(self.mat, self.order, self.perm, A)
+                self.reordered = Reordered(self.mat, rows, self.perm, self.order)
+                A = self.P = self.reordered.P
                 leaf = leaf[self.perm]
                 self.xp, self.yp = A.createVecs()
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
@@ -189,8 +189,9 @@ class MultilevelPC:
 
     @property
     def nbytes(self) -> int:
-        """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy, each level's leaf blocks,
-        W and E, the leaf solves' factors and the coarse factor (the band counted, PCREDUNDANT's gathered LU not)."""
+        """Bytes this rank holds besides the operator, 12 per stored entry: the reordered copy (and 8 an entry of its
+        values' map), each level's leaf blocks, W and E, the leaf solves' factors and the coarse factor (the band
+        counted, PCREDUNDANT's gathered LU not)."""
         mats = [self.P] if self.P is not None else []
         for level in self.hierarchy.levels:
             mats += [m for m in (level.B, level.W) if m is not None]
@@ -200,7 +201,8 @@ class MultilevelPC:
         pcs = [pc.getBJacobiSubKSP()[0].getPC() if pc.getType() == "bjacobi" else pc for pc in pcs]
         coarse = self.pc.getMGCoarseSolve().getPC()
         band = coarse.getType() == PETSc.PC.Type.PYTHON                  # a band's values: 8 bytes each
-        return 12 * (total + sum(held(pc) for pc in pcs)) + (8 if band else 12) * held(coarse)
+        taken = 0 if self.reordered is None or self.reordered.take is None else self.reordered.take.nbytes
+        return 12 * (total + sum(held(pc) for pc in pcs)) + (8 if band else 12) * held(coarse) + taken
 
     def describe(self) -> list:
         """Lines for ``-ksp_view``."""
@@ -227,7 +229,7 @@ class MultilevelPC:
         for obj in (self.pc, self.P, self.order, self.xp, self.yp, self.xw):
             if obj is not None:
                 obj.destroy()
-        self.pc = self.hierarchy = self.P = self.perm = self.order = self.xp = self.yp = self.xw = self.refill = None
+        self.pc = self.hierarchy = self.P = self.perm = self.order = self.xp = self.yp = self.xw = self.reordered = None
 
     def destroy(self):
         """Free the V-cycle and the hierarchy."""
