@@ -1,4 +1,4 @@
-"""The PETSc side of the data: geometry attached to a Mat, and a sequential Mat read as scipy CSR."""
+"""The PETSc side of the data: geometry attached to a Mat, a sequential Mat read as scipy CSR and its values written."""
 from __future__ import annotations
 
 import contextlib
@@ -135,6 +135,8 @@ def _seqaij_view(handle, shape):
 def seqaij_values(mat):
     """The stored values of the SEQAIJ ``mat`` as a writable view of PETSc's array for the duration of the block;
     the Mat's state is raised at its end (MatSeqAIJRestoreArray: its SOR diagonal is then found again)."""
+    if mat.getType() != "seqaij":
+        raise TypeError(f"seqaij_values takes a seqaij matrix, not {mat.getType()}")
     lib = _c_api()[0]
     handle, values = ctypes.c_void_p(mat.handle), ctypes.POINTER(ctypes.c_double)()
     if lib.MatSeqAIJGetArray(handle, ctypes.byref(values)):
@@ -143,7 +145,8 @@ def seqaij_values(mat):
         nnz = int(mat.getInfo()["nz_used"])
         yield np.ctypeslib.as_array(values, shape=(nnz,)) if nnz else np.zeros(0)
     finally:
-        lib.MatSeqAIJRestoreArray(handle, ctypes.byref(values))
+        if lib.MatSeqAIJRestoreArray(handle, ctypes.byref(values)):
+            raise RuntimeError("PETSc's MatSeqAIJRestoreArray failed on a seqaij matrix")
 
 
 def _mpiaij_rows(mat) -> sp.csr_matrix:

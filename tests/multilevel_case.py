@@ -3,9 +3,9 @@
 explicit zero there): rank 0 sees a new pattern, rank 1 new values. Every rank must make a new analysis and take
 the same method (the choice is collective: this had hung). Prints ``first <setup type> <its>`` and
 ``second <setup type> <its> <relres>`` on rank 0; then the matrix times 2 (a refresh of the kept hierarchy on both
-ranks): ``third <setup type> <its> <relres> <age>``. Last, the same under ``-htp_ml_reorder 1`` (each rank's rows in their
-leaves' order: a copy MatCreateSubMatrix makes, and makes again for the values times 2): ``reordered <its> <relres>
-<age> <whether the copy is MatCreateSubMatrix's of the values>``."""
+ranks): ``third <setup type> <its> <relres> <age>``. Last, the same under ``-htp_ml_reorder 1`` (each rank's rows in
+their leaves' order: a copy MatCreateSubMatrix makes, and makes again for the values times 2): ``reordered <its>
+<relres> <age> <whether the copy is MatCreateSubMatrix's of the values>``."""
 import sys
 from pathlib import Path
 
@@ -63,3 +63,4 @@ setup = ksp2.getPC().getPythonContext().setup
 fresh = mat.createSubMatrix(setup.order, setup.order)
 PETSc.Sys.Print("reordered", ksp2.getIterationNumber(), f"{r.norm() / bv.norm():.1e}", setup.age,
                 setup.reordered.take is None and fresh.equal(setup.P))
+fresh.destroy()

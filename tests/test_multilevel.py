@@ -184,7 +184,7 @@ def test_the_reordered_copy_takes_new_values_by_its_map():
     """Rows numbered at random: on one rank the V-cycles' reordered copy is made from the operator's rows by a map of
     its entries (:mod:`petsc_htp.multilevel.reordered`), and new values of the pattern reach it by that map: the copy
     is MatCreateSubMatrix's of the operator's values, entry for entry, at the first solve and after new values that
-    keep the leaves or make them anew, and CG converges on each."""
+    keep the leaves and that make them anew (RENEW), and CG converges on each."""
     A, b = CASES["fem_tri"](16384, 0)
     mat = _mat(A)
     ksp, ages = None, []
@@ -202,9 +202,50 @@ def test_the_reordered_copy_takes_new_values_by_its_map():
         fresh = mat.createSubMatrix(setup.order, setup.order)
         assert fresh.equal(setup.P)
         fresh.destroy()
-    assert max(ages) > 0, ages
+    assert max(ages) > 0 and 0 in ages[1:], ages           # kept leaves and new ones both refilled
     ksp.destroy()
     mat.destroy()
+
+
+def test_reordered_matches_matcreatesubmatrix_entry_for_entry():
+    """multilevel.reordered on one rank: the copy of a matrix with stored zeros (the entries two columns off the
+    diagonal) and a row of its diagonal alone is MatCreateSubMatrix's, bit for bit, with the symmetry flag kept; refilled with new
+    values it is again, its state raised, so that PCSOR's sweep is a fresh copy's."""
+    from petsc_htp.multilevel.reordered import Reordered
+
+    A = sp.random(300, 300, density=0.03, random_state=3, format="csr")
+    A = (A + A.T + sp.eye(300) * 10).tolil()
+    A[5, 7], A[7, 5] = 1.0, 1.0
+    A[9, :], A[:, 9] = 0.0, 0.0
+    A[9, 9] = 2.0
+    A = A.tocsr()
+    A.sort_indices()
+    A.data[np.flatnonzero((np.repeat(np.arange(300), np.diff(A.indptr)) - A.indices) ** 2 == 4)] = 0.0   # stored zeros
+    assert A.nnz > np.count_nonzero(A.data) and A.indptr[10] - A.indptr[9] == 1 and (A != A.T).nnz == 0
+    mat = _mat(A)
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    perm = np.random.default_rng(1).permutation(300)
+    order = PETSc.IS().createGeneral(perm.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+    with local_rows(mat) as rows:
+        made = Reordered(mat, rows, perm, order)
+    fresh = mat.createSubMatrix(order, order)
+    assert made.P.equal(fresh) and made.P.isSymmetricKnown() == (True, True)
+    x, y, z = fresh.createVecs()[0], fresh.createVecs()[0], fresh.createVecs()[0]
+    x.setRandom()
+    made.P.SOR(x, y)                                            # PCSOR's diagonal cached for the old values
+    mat.scale(3.0)
+    state = made.P.stateGet()
+    with local_rows(mat) as rows:
+        made.refill(rows)
+    mat.createSubMatrix(order, order, submat=fresh)
+    assert made.P.equal(fresh) and made.P.stateGet() > state
+    y.set(0.0)
+    z.set(0.0)
+    made.P.SOR(x, y)
+    fresh.SOR(x, z)
+    assert np.array_equal(y.getArray(), z.getArray())
+    for obj in (made.P, fresh, order, mat, x, y, z):
+        obj.destroy()
 
 
 def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):

@@ -1,12 +1,13 @@
 """The copy of the operator whose rows the V-cycles take in their leaves' order, and its new values: on one rank
 made from the operator's rows by one sort (where each of its entries lies among the operator's) and refilled by a
 gather into its array; on several ranks by PETSc's MatCreateSubMatrix, which searches every row's columns each time
-(P1 triangles numbered at random, 65 536 rows: 31 against 8 ms a frame, at 1M rows 1 083 against 141:
-``results/refill-20261128/refill.txt``)."""
+(P1 triangles numbered at random, one rank: made in 18.2 against 20.4 ms and refilled in 5.7 against 18.9 at 65 536
+rows, 572 against 1 174 and 234 against 1 120 at 1M: ``results/refill-20261128/refill.txt``)."""
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from petsc4py import PETSc
 
 from ..aijarrays import aij
 from ..petscmat import seqaij_values
@@ -14,7 +15,8 @@ from ..petscmat import seqaij_values
 
 class Reordered:
     """:attr:`P` = ``mat``[order, order] (``rows``: this rank's rows of ``mat``; ``perm``: its rows in that order,
-    numbered on the rank), made anew for new values by :meth:`refill`."""
+    numbered on the rank; ``mat``'s known symmetry kept), its values refilled by :meth:`refill`; P is the caller's
+    to free."""
 
     def __init__(self, mat, rows, perm, order):
         self.mat, self.order, self.take = mat, order, None
@@ -25,14 +27,19 @@ class Reordered:
         self.take = where.data
         self.P = aij(mat.getComm(), mat.getSizes(), sp.csr_matrix((rows.data[self.take], where.indices, where.indptr),
                                                                    shape=where.shape))
+        known, symmetric = mat.isSymmetricKnown()
+        if known:
+            self.P.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
 
     def refill(self, rows):
-        """:attr:`P`'s values from ``mat``'s new ones (this rank's ``rows``, the pattern it was made from)."""
+        """:attr:`P`'s values from ``mat``'s new ones: on one rank gathered from ``rows`` (this rank's, the pattern P
+        was made from) by the map, on several read from ``mat`` by MatCreateSubMatrix."""
         if self.take is None:
             self.mat.createSubMatrix(self.order, self.order, submat=self.P)
             return
         with seqaij_values(self.P) as values:
-            np.take(rows.data, self.take, out=values)
+            np.take(rows.data, self.take, out=values, mode="clip")     # no bounds check: no buffer (the map is
+            # within the pattern's entries, which the numeric step's caller keeps)
 
 
 def permuted_entries(rows, perm) -> sp.csr_matrix:

@@ -61,7 +61,7 @@ class MultilevelPC:
         self.reorder = reorder
         _check(self.prefix, self.coarse_max, self.max_levels, self.damping, self.jacobi, self.smoother)
         self.hierarchy = self.pc = self.P = self.perm = self.order = self.xp = self.yp = self.weak = self.range = None
-        self.xw = self.reordered = None     # the projected input's work vector (:meth:`mult`); P and its values
+        self.xw = self.reordered = None     # the projected input's work vector (:meth:`mult`); P, its values' map
         self.age, self.first_its, self.build_ms, self.refresh_ms = 0, None, 0.0, 0.0
         self.renew, self.ranges = False, Ranges(mat)
         self.anew = None            # why the last numeric step made the leaves anew on this analysis, else None
