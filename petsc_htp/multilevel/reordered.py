@@ -1,8 +1,8 @@
 """The copy of the operator whose rows the V-cycles take in their leaves' order, and its new values: on one rank
 made from the operator's rows by one sort (where each of its entries lies among the operator's) and refilled by a
 gather into its array; on several ranks by PETSc's MatCreateSubMatrix, which searches every row's columns each time
-(P1 triangles numbered at random, one rank: made in 18.2 against 20.4 ms and refilled in 5.7 against 18.9 at 65 536
-rows, 572 against 1 174 and 234 against 1 120 at 1M: ``results/refill-20261128/refill.txt``)."""
+(P1 triangles numbered at random, one rank, medians: made in 24.2 against 25.4 ms and refilled in 4.2 against 21.9 at
+65 536 rows, 641 against 1 160 and 155 against 1 196 at 1M: ``results/refill-20261128/refill.txt``)."""
 from __future__ import annotations
 
 import numpy as np
