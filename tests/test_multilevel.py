@@ -209,8 +209,8 @@ def test_the_reordered_copy_takes_new_values_by_its_map():
 
 def test_reordered_matches_matcreatesubmatrix_entry_for_entry():
     """multilevel.reordered on one rank: the copy of a matrix with stored zeros (the entries two columns off the
-    diagonal) and a row of its diagonal alone is MatCreateSubMatrix's, bit for bit, with the symmetry flag kept; refilled with new
-    values it is again, its state raised, so that PCSOR's sweep is a fresh copy's."""
+    diagonal) and a row of its diagonal alone is MatCreateSubMatrix's, bit for bit, with the symmetry flag kept;
+    refilled with new values it is again, its state raised, so that PCSOR's sweep is a fresh copy's."""
     from petsc_htp.multilevel.reordered import Reordered
 
     A = sp.random(300, 300, density=0.03, random_state=3, format="csr")
