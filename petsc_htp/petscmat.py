@@ -263,10 +263,15 @@ def aij_operator(mat, previous=None) -> PETSc.Mat:
         out = previous
     out.setNullSpace(mat.getNullSpace())                   # an empty one clears a reused copy's
     out.setNearNullSpace(mat.getNearNullSpace())
+    keep_symmetry(mat, out)
+    return out
+
+
+def keep_symmetry(mat, copy) -> None:
+    """Flag ``copy`` symmetric or not as ``mat`` is known to be (nothing where it is not known)."""
     known, symmetric = mat.isSymmetricKnown()
     if known:
-        out.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
-    return out
+        copy.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
 
 
 def read_csr(mat) -> sp.csr_matrix:

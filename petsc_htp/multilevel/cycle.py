@@ -61,8 +61,8 @@ def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None, count=2) ->
     :data:`SMOOTHERS`), the coarse LU's where ``lu`` (else only KSPPREONLY: the banded factor's PC is set apart):
     PCMG's distinct up smoothers unless the user set a levels' option (Gauss-Seidel then sweeps both ways each time,
     so that the V-cycle stays symmetric). With ``count`` 1 level, PCMG's coarse solve is that level's
-    (``mg_levels_0_``), and no smoother's are set (it had taken the smoother's one sweep: CG did not converge in 10 000 iterations on a
-    64^2 DMDA, ``results/robust-20261128/ab.txt``)."""
+    (``mg_levels_0_``), and no smoother's are set (it had taken the smoother's one sweep: CG did not converge in
+    10 000 iterations on a 64^2 DMDA, ``results/robust-20261128/ab.txt``)."""
     theirs = users_levels(prefix) if theirs is None else theirs
     sweep = SYMMETRIC_SWEEP if theirs else SWEEPS[0]
     solve = DIAGONAL if smoother == "jacobi" else sweep if smoother == "gs" else LEAF_SOLVE[ranks]

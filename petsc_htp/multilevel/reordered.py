@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from petsc4py import PETSc
 
 from ..aijarrays import aij
-from ..petscmat import seqaij_values
+from ..petscmat import keep_symmetry, seqaij_values
 
 
 class Reordered:
@@ -27,9 +26,7 @@ class Reordered:
         self.take = where.data
         self.P = aij(mat.getComm(), mat.getSizes(), sp.csr_matrix((rows.data[self.take], where.indices, where.indptr),
                                                                    shape=where.shape))
-        known, symmetric = mat.isSymmetricKnown()
-        if known:
-            self.P.setOption(PETSc.Mat.Option.SYMMETRIC, symmetric)
+        keep_symmetry(mat, self.P)
 
     def refill(self, rows):
         """:attr:`P`'s values from ``mat``'s new ones: on one rank gathered from ``rows`` (this rank's, the pattern P
