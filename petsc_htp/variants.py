@@ -117,20 +117,20 @@ class TwoLevel:
     def composed(self, mat, A, coords):
         """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`), or
         with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a bare 2-D
-        graph of at least ``MIN_ROWS`` rows, in a local order on several ranks) the
+        graph, or 3-D without positive couplings, of at least ``MIN_ROWS`` rows, in a local order on several ranks) the
         multilevel V-cycles, :attr:`note` saying so."""
         if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
             from petsc4py import PETSc
 
-            from .multilevel.choice import DIM, serves
+            from .multilevel.choice import serves
 
-            why, reorder = ("", False) if PETSc.Options(self.prefix).hasName("htp_variant") else serves(
+            why, reorder, dim = ("", False, 0) if PETSc.Options(self.prefix).hasName("htp_variant") else serves(
                 mat, A, lambda: self.choice.block_shape(mat, A))
             if why:
                 from .multilevel.setup import MultilevelPC
 
                 self.note = why
-                return MultilevelPC(mat, A, self.prefix + "htp_", DIM, reorder=reorder)
+                return MultilevelPC(mat, A, self.prefix + "htp_", dim, reorder=reorder, signed=False)
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)

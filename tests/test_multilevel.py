@@ -84,8 +84,7 @@ def test_the_v_cycle_converges_on_foreign_matrices(case, most):
     reason, its, relres, ksp, _ = solve(A, b, htp_variant="multilevel", htp_direct_max=0, htp_ml_coarse_max=1000)
     assert reason > 0 and its <= most and relres <= 1e-8, (reason, its, relres)
     text = lines(ksp)
-    smoother = "one Gauss-Seidel sweep" if case in ("dmda2d", "free_surface", "fem_tri", "lognormal", "neumann") \
-        else "one Richardson step"
+    smoother = "one Richardson step" if case == "fem_tet" else "one Gauss-Seidel sweep"   # positive couplings
     assert re.search(r"levels: [3-9], rows \d+ -> \d+", text) and f"smoother: {smoother}" in text, text
     assert ksp.getPC().getPythonContext().getInnerPCs()["multigrid"].getType() == "mg"
 
@@ -248,11 +247,12 @@ def test_reordered_matches_matcreatesubmatrix_entry_for_entry():
         obj.destroy()
 
 
-def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
+def test_a_large_bare_graph_takes_the_v_cycles_as_it_comes(tmp_path):
     """HTPPC as it comes takes the V-cycles for a bare 2-D graph of at least MIN_ROWS rows in a local order, and
     says so, and keeps them for new values on the same KSP; ``-htp_variant twolevel`` keeps the two-level
-    method; numbered at random it takes them too on one rank, its rows in their leaves' order; a 3-D graph, fewer
-    rows or a block size keep the two-level method (multilevel.choice)."""
+    method; numbered at random it takes them too on one rank, its rows in their leaves' order; so does a 3-D DMDA
+    matrix, with Gauss-Seidel, while P1 tetrahedra (a third of their couplings positive) and fewer rows keep the
+    two-level method (multilevel.choice)."""
     from petsc_htp.multilevel import choice
     from petsc_htp.scenes import foreign
     from petsc_htp.twolevel.graphshape import graph_shape
@@ -284,15 +284,22 @@ def test_a_large_bare_2d_graph_takes_the_v_cycles_as_it_comes(tmp_path):
         assert not choice.local_order(shuffled, 0)
     m = _mat(shuffled)
     with local_rows(m) as rows:
-        why, reorder = choice.serves(m, rows, lambda: graph_shape(rows, want_weak=False, samples=8))
-        assert reorder and "numbered at random" in why, why
+        why, reorder, dim = choice.serves(m, rows, lambda: graph_shape(rows, want_weak=False, samples=8))
+        assert reorder and dim == 2 and "numbered at random" in why, why
     m.destroy()
+    cube, b = foreign.dmda(3, int(np.ceil(choice.MIN_ROWS ** (1 / 3))), 1e3, 0)
+    reason, its, relres, ksp, _ = solve(cube, b)
+    assert reason > 0 and relres <= 1e-8 and its <= 18, (reason, its, relres)
+    note, text = ksp.getPC().getPythonContext().variant.note, lines(ksp)
+    assert "bare 3-D graph" in note and "positive" in note and "smoother: one Gauss-Seidel sweep" in text, note
     small, _ = foreign.dmda(2, side - 20, 1e3, 0)
-    cube, _ = foreign.dmda(3, 60, 1e3, 0)
-    for other in (small, cube):
+    tets, _ = CASES["fem_tet"](choice.MIN_ROWS + 4000, 0)
+    for other, dim in ((small, 0), (tets, 3)):
         m = _mat(other)
         with local_rows(m) as rows:
-            assert choice.serves(m, rows, lambda: graph_shape(rows, want_weak=False, samples=8)) == ("", False)
+            assert other.shape[0] >= choice.MIN_ROWS or dim == 0
+            assert choice.serves(m, rows, lambda: graph_shape(rows, want_weak=False, samples=8)) == ("", False, dim)
+            assert choice.signed(m, rows) == (dim == 3)
         m.destroy()
     mat.destroy()
 

@@ -1,6 +1,7 @@
-"""When HTPPC as it comes runs the multilevel V-cycles in place of the two-level method: a bare, scalar 2-D graph of
-at least :data:`MIN_ROWS` rows, where their iterations (about half the two-level method's) pay for a costlier
-application and the hierarchy's setup costs less than the two-level method's analysis and coarse LU."""
+"""When HTPPC as it comes runs the multilevel V-cycles in place of the two-level method: a bare, scalar 2-D graph, or
+a 3-D one whose couplings are not positive (:func:`signed`), of at least :data:`MIN_ROWS` rows, where their
+iterations (about half the two-level method's) pay for a costlier application and the hierarchy's setup costs less
+than the two-level method's analysis and coarse solve."""
 from __future__ import annotations
 
 import numpy as np
@@ -17,9 +18,11 @@ MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (o
 # lognormal 144 / 99, neumann 174 / 136, fem_tri 266 / 246; 16 384 rows level within 10 %, and with Gauss-Seidel
 # 40-25 % less on the DMDA, log-normal and Neumann cases, but a random field of 1e4 edges (a fifth of them) took 71
 # CG iterations there against the two-level method's 21, as at 65 536 rows 103 against 22 (pyamg's smoothed
-# aggregation 361, AMGCL 669: results/gs-20261128/salt.txt); 3-D: the Galerkin products of the smoothed coarse vectors cost more than the levels
-# save, dmda3d at 1M 4.0 / 6.3 s)
-DIM = 2
+# aggregation 361, AMGCL 669: results/gs-20261128/salt.txt)
+DIMS = (2, 3)           # the graphs' dimensions the V-cycles serve (3-D: see POSITIVE)
+POSITIVE = 0.05         # share of a 3-D graph's sampled off-diagonal couplings above which it keeps the two-level
+# method: P1 tetrahedra (a third positive) took 1.5 x its time with any smoother, the 7-point DMDA matrix (none)
+# 0.6-0.8 x (see serves)
 SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 
@@ -27,23 +30,37 @@ SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 def serves(mat, rows, shape) -> tuple:
     """(why the V-cycles serve ``mat`` (this rank's ``rows``; ``shape()`` gives its diagonal block's
     :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' | whether its rows are
-    to be taken in their leaves' order) (collective): at
-    least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph on some rank and, on several ranks,
-    rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered at random in their
+    to be taken in their leaves' order | the graph's dimension) (collective): at
+    least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph, or a 3-D one not :func:`signed`,
+    and, on several ranks, rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered at random in their
     leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's, 2026-11-28,
     results/gs-20261128/run.txt: 1 048 576 rows 9 763 / 19 512 (18 / 38 iterations), 262 144 rows 1 620 / 2 947
     (17 / 37), 65 536 rows 412 / 465 (16 / 34); a sequence frame at 65 536 rows 339-385 / 335-359 (24-27 / 50-57,
     frames65536.txt)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level method 0.34)."""
     n = mat.getSize()[0]
-    if n < MIN_ROWS or unscalar(mat, rows) or dimension(mat, rows, shape) != DIM:
-        return "", False
+    dim = 0 if n < MIN_ROWS or unscalar(mat, rows) else dimension(mat, rows, shape)
+    if dim not in DIMS or dim == 3 and signed(mat, rows):
+        return "", False, dim
     coll = Collective(mat.getComm())
     local = not coll.any(not local_order(rows, mat.getOwnershipRange()[0]))
     if coll.size > 1 and not local:
-        return "", False
+        return "", False, dim
     order = "" if local else ", numbered at random: its rows taken in their leaves' order"
-    return (f"multilevel V-cycles in place of the two-level method (by the problem: a bare 2-D graph of {n} rows, at "
-            f"least {MIN_ROWS}{order}; -htp_variant twolevel keeps the two-level method)"), not local
+    kind = "" if dim == 2 else f", at most {100 * POSITIVE:.0f}% of its couplings positive"
+    return (f"multilevel V-cycles in place of the two-level method (by the problem: a bare {dim}-D graph of {n} rows, "
+            f"at least {MIN_ROWS}{kind}{order}; -htp_variant twolevel keeps the two-level method)"), not local, dim
+
+
+def signed(mat, rows) -> bool:
+    """Whether more than :data:`POSITIVE` of the nonzero off-diagonal couplings of :data:`SAMPLE_ROWS` evenly spaced
+    rows are positive on some rank (``rows``: this rank's; collective)."""
+    n, start = rows.shape[0], mat.getOwnershipRange()[0]
+    pick = np.linspace(0, n - 1, min(n, SAMPLE_ROWS)).astype(np.int64) if n else np.zeros(0, dtype=np.int64)
+    where, which = row_entries(rows.indptr, pick)
+    value = rows.data[where]
+    off = (value != 0) & (rows.indices[where] != start + pick[which])
+    share = float(np.mean(value[off] > 0)) if off.any() else 0.0
+    return Collective(mat.getComm()).any(share > POSITIVE)
 
 
 def unscalar(mat, rows, option=0) -> str:

@@ -12,8 +12,9 @@ Three smoothers (:data:`SMOOTHERS`, ``-htp_ml_smoother``): ``gs``, one Gauss-Sei
 (PCSOR), forward down and backward up, unscaled; ``jacobi``, one Richardson step with D^-1 (no factor, no
 leaf-block matrix: the levels' options of the user's then act on the level's operator); ``leaves``, one with the
 exact solves of the level's leaf blocks; these two scaled by Lanczos (the finest level's Jacobi step by its
-Gershgorin bound where that is at most :data:`DOMINANT`). On 2-D graphs Gauss-Seidel takes the fewest iterations
-for the work, in 3-D the leaf solves (see :func:`default_smoother`).
+Gershgorin bound where that is at most :data:`DOMINANT`). On 2-D graphs, and 3-D ones without positive couplings,
+Gauss-Seidel takes the fewest iterations for the work, on other 3-D ones the leaf solves (see
+:func:`smoother`).
 """
 from __future__ import annotations
 
@@ -44,16 +45,22 @@ COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_ty
               "redundant_pc_factor_mat_ordering_type": "nd", "redundant_pc_factor_shift_type": "nonzero"}}
 
 
-def default_smoother(dim) -> str:
-    """The smoother for a graph of dimension ``dim``: Gauss-Seidel in 2-D, a forward sweep down and a backward one up
+def smoother(given, dim, signed) -> str:
+    """The smoother ``given`` (``-htp_ml_smoother``), or where that is 'auto' the one for a graph of dimension
+    ``dim``: Gauss-Seidel in 2-D, or in 3-D where not ``signed()`` (positive
+    couplings: :func:`.choice.signed`, asked only there), a forward sweep down and a backward one up
     (the V-cycle stays symmetric; no eigenvalue estimate): fewer iterations than Jacobi, a sweep costing somewhat
     more than its step (one rank, CG to 1e-8, setup + solve ms over three runs in turn, 2026-11-28,
     results/gs-20261128/run.txt: 65 536 rows dmda2d 129-155 against 132-174 (14 against 17 iterations), lognormal
     105-192 / 112-163 (13 / 15), free_surface 90-99 / 110-140 (11 / 14), neumann 124-182 / 134-207 (11 / 14);
     1 048 576 rows dmda2d 3 070-3 301 / 2 804-3 240 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M
     2 208 / 2 908 ms); the leaf solves
-    otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35)."""
-    return "gs" if dim == 2 else "leaves"
+    otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35).
+    The 7-point DMDA matrix (1M rows, setup + solve ms, 2026-11-29): Gauss-Seidel 4 297 (16 iterations), Jacobi
+    4 262 (19), the leaf solves 6.3 s (2026-11-28)."""
+    if given != "auto":
+        return given
+    return "gs" if dim == 2 or not signed() else "leaves"
 
 
 def defaults(prefix, ranks, smoother="leaves", lu=True, theirs=None, count=2) -> dict:

@@ -12,6 +12,7 @@ from ..events import phase
 from ..twolevel.inner import held
 from ..twolevel.spacereuse import stale_cost
 from . import cycle
+from . import choice
 from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, banded_leaves, leaves, row_scaled
@@ -38,13 +39,13 @@ def _check(prefix, coarse_max, max_levels, damping, jacobi, smoother):
 class MultilevelPC:
     """V-cycles of :mod:`petsc_htp.multilevel` on ``mat`` (this rank's ``rows``; its graph of dimension ``dim``)
     under the options ``prefix`` + ``ml_`` (PCMG's, and ``coarse_max``, ``max_levels``: :mod:`.hierarchy`;
-    ``jacobi``: :mod:`.level`; ``damping``, ``smoother``: :mod:`.cycle`; ``reorder``: :meth:`numeric`, auto unless
-    set: the ``reorder`` given, where known, else found)."""
+    ``jacobi``: :mod:`.level`; ``damping``, ``smoother``: :mod:`.cycle`, auto by ``dim`` and ``signed``, found where
+    not given; ``reorder``: :meth:`numeric`, auto unless set: the ``reorder`` given, where known, else found)."""
 
     title = "multilevel preconditioner: V-cycles on an aggregation hierarchy of leaves (PCMG)"
     whole = False
 
-    def __init__(self, mat, rows, prefix, dim, reorder=None):
+    def __init__(self, mat, rows, prefix, dim, reorder=None, signed=None):
         t0 = time.perf_counter()
         self.mat, self.prefix = mat, prefix + "ml_"
         db = PETSc.Options(self.prefix)
@@ -52,8 +53,8 @@ class MultilevelPC:
         self.max_levels = db.getInt("max_levels", MAX_LEVELS)
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)
-        self.smoother = db.getString("smoother", "auto")
-        self.smoother = cycle.default_smoother(dim) if self.smoother == "auto" else self.smoother
+        self.smoother = cycle.smoother(db.getString("smoother", "auto"), dim,
+                                       lambda: choice.signed(mat, rows) if signed is None else signed)
         if db.getString("reorder", "auto").lower() != "auto":
             reorder = db.getBool("reorder")
         elif reorder is None:               # collective: createSubMatrix on every rank or none
