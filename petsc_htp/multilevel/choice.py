@@ -22,7 +22,7 @@ MIN_ROWS = 30_000       # rows from which the V-cycles serve a bare 2-D graph (o
 DIMS = (2, 3)           # the graphs' dimensions the V-cycles serve (3-D: see POSITIVE)
 POSITIVE = 0.05         # share of a 3-D graph's sampled off-diagonal couplings above which it keeps the two-level
 # method: P1 tetrahedra (a third positive) took 1.5 x its time with any smoother, the 7-point DMDA matrix (none)
-# 0.6-0.8 x (see serves)
+# 0.6-0.8 x (results/threed-20261129)
 SPAN = 4.0              # see local_order
 SAMPLE_ROWS = 4096      # rows whose entries local_order measures
 

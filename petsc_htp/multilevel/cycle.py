@@ -56,8 +56,8 @@ def smoother(given, dim, signed) -> str:
     1 048 576 rows dmda2d 3 070-3 301 / 2 804-3 240 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M
     2 208 / 2 908 ms); the leaf solves
     otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35).
-    The 7-point DMDA matrix (1M rows, setup + solve ms, 2026-11-29): Gauss-Seidel 4 297 (16 iterations), Jacobi
-    4 262 (19), the leaf solves 6.3 s (2026-11-28)."""
+    On the 3-D DMDA matrix Gauss-Seidel took 0.6-0.8 x the two-level method's time (results/threed-20261129/run.txt),
+    the leaf solves 1.4 x at 1M rows (results/multilevel-20261128b/dev.txt)."""
     if given != "auto":
         return given
     return "gs" if dim == 2 or not signed() else "leaves"

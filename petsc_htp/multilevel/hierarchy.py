@@ -37,7 +37,7 @@ class Hierarchy:
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
             first = not self.levels
             level = Level(self.coarsest, self.jacobi, leaf if first else None, self.blocks, rows if first else None,
-                          self.weighted and first)
+                          self.weighted and first, len(self.levels))
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.below.destroy()
