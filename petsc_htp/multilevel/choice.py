@@ -32,11 +32,12 @@ def serves(mat, rows, shape) -> tuple:
     :class:`..twolevel.graphshape.GraphShape`, the whole-matrix choice's, found once), or '' | whether its rows are
     to be taken in their leaves' order | the graph's dimension) (collective): at
     least :data:`MIN_ROWS` rows, a scalar problem (:func:`unscalar`), a 2-D graph, or a 3-D one not :func:`signed`,
-    and, on several ranks, rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered at random in their
-    leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's, 2026-11-28,
-    results/gs-20261128/run.txt: 1 048 576 rows 9 763 / 19 512 (18 / 38 iterations), 262 144 rows 1 620 / 2 947
-    (17 / 37), 65 536 rows 412 / 465 (16 / 34); a sequence frame at 65 536 rows 339-385 / 335-359 (24-27 / 50-57,
-    frames65536.txt)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level method 0.34)."""
+    and, on several ranks, rows in a local order (:func:`local_order`, on every rank). One rank takes rows numbered
+    at random in their leaves' order (P1 triangles, CG to 1e-8, setup + solve ms against the two-level method's,
+    2026-11-28, results/gs-20261128/run.txt: 1 048 576 rows 9 763 / 19 512 (18 / 38 iterations), 262 144 rows
+    1 620 / 2 947 (17 / 37), 65 536 rows 412 / 465 (16 / 34); a sequence frame at 65 536 rows 339-385 / 335-359
+    (24-27 / 50-57, frames65536.txt)); on two ranks split at random the V-cycles' set-up took 44 s (the two-level
+    method 0.34)."""
     n = mat.getSize()[0]
     dim = 0 if n < MIN_ROWS or unscalar(mat, rows) else dimension(mat, rows, shape)
     if dim not in DIMS or dim == 3 and signed(mat, rows):

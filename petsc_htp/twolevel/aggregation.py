@@ -205,8 +205,9 @@ def node_graph(A, node) -> sp.csr_matrix:
 def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None, lone=None,
                base=THETA) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
-    ``theta`` (None: :func:`threshold`'s for A from ``base``; the standard passes after the first take the same on the aggregates'
-    graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations), those
+    ``theta`` (None: :func:`threshold`'s for A from ``base``; the standard passes after the first take the same on
+    the aggregates' graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG
+    iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
     module docstring), and the rows ``alone`` (boolean, optional: :func:`..ranksplit.cut_rows`) in leaves of one row
     each. With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset`` rows into its
@@ -227,7 +228,8 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
         whole = keep.size == n or not alone.any()        # decoupled rows stand alone in A's strong graph: no
         M = A if whole else A[keep][:, keep].tocsr()     # submatrix (8 ms of the DMDA's 262 144 rows), their
         agg = np.arange(M.shape[0])                      # aggregates dropped below
-        theta = threshold(sampled_shares(M, picked=drawn(M.shape[0], THRESHOLD_ROWS))[1], base) if theta is None else theta
+        if theta is None:
+            theta = threshold(sampled_shares(M, picked=drawn(M.shape[0], THRESHOLD_ROWS))[1], base)
         for step in range(passes):
             if step and second == "pairs":
                 count, node = pairs(M)
