@@ -1,7 +1,7 @@
-"""mpiexec -n N python tests/pipelined_case.py SIDE [PETSc options]: PETSc's ksp ex45 system (a 7-point Laplacian on SIDE^3 nodes
-whose boundary rows hold just their diagonal while the interior rows keep their couplings to them; the solution
-is 1 there and smooth inside) solved by HTPPC under CG and PIPECG; prints a line per KSP type (iterations, reason, true relres,
-the form HTPPC's two-level method took, or 'vcycles')."""
+"""mpiexec -n N python tests/pipelined_case.py SIDE [PETSc options]: PETSc's ksp ex45 system (a 7-point Laplacian on
+SIDE^3 nodes whose boundary rows hold just their diagonal while the interior rows keep their couplings to them; the
+solution is 1 there and smooth inside) solved by HTPPC under CG and PIPECG; prints a line per KSP type (iterations,
+reason, true relres, the form HTPPC's two-level method took, or 'vcycles')."""
 import sys
 from pathlib import Path
 
