@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from .level import DECAY, JACOBI, THETA, Level
+from .level import JACOBI, Level
 
 COARSE_MAX = {2: 5000, 3: 1000}     # rows of the coarsest operator, factored once, by the graph's dimension (2-D,
 # one rank, CG to 1e-8, single solves, 5 000 against 1 000, 2026-11-28: 1M rows dmda2d 1 945 / 1 966 ms, lognormal
@@ -22,12 +22,12 @@ class Hierarchy:
     """:attr:`levels` (:class:`~.level.Level`, finest first) and :attr:`coarsest`, the operator under the last;
     ``leaf``, ``rows``: the finest level's leaves (:func:`.level.leaves`) and this rank's rows of ``A`` where already
     found; ``blocks``: each level's leaf-block matrix made (the leaf solves' smoother); ``weighted``: the finest
-    level's leaf vectors weighted (:func:`.level.row_scaled`); ``decay``: each coarser level's strength threshold
-    the finer one's times this (:data:`.level.DECAY`)."""
+    level's leaf vectors weighted (:func:`.level.row_scaled`); ``least``: the mean rows a coarser level's leaves hold
+    at least (:data:`.level.LEAST`)."""
 
     def __init__(self, A, coarse_max=COARSE_MAX[2], max_levels=MAX_LEVELS, jacobi=JACOBI, leaf=None, blocks=True,
-                 rows=None, weighted=False, decay=DECAY[2]):
-        self.levels, self.coarsest, self.decay = [], A, decay
+                 rows=None, weighted=False, least=0.0):
+        self.levels, self.coarsest, self.least = [], A, least
         self.sizes, self.jacobi, self.blocks, self.weighted = (coarse_max, max_levels), jacobi, blocks, weighted
         self._grow(leaf, rows)
 
@@ -38,7 +38,7 @@ class Hierarchy:
         while self.coarsest.getSize()[0] > coarse_max and len(self.levels) + 1 < max_levels:
             first = not self.levels
             level = Level(self.coarsest, self.jacobi, leaf if first else None, self.blocks, rows if first else None,
-                          self.weighted and first, THETA * self.decay ** len(self.levels))
+                          self.weighted and first, 0.0 if first else self.least)
             n, k = level.W.getSize()
             if k == 0 or k > STALL * n:
                 level.below.destroy()

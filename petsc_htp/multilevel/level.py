@@ -22,9 +22,10 @@ from ..twolevel.csr import row_sums
 from . import galerkin
 
 PASSES = 1              # aggregation passes a level (2-D DMDA at 65 536 rows: one pass 18 CG iterations, two 23-28)
-DECAY = {2: 1.0, 3: 0.5}    # each coarser level's strength threshold: the finer one's times this, by the graph's
-# dimension (AMGCL's eps_strong halves; 3-D at 125 000 rows, rotated-free anisotropy eps 0.1: operator complexity 6.05
-# -> 2.34; 2-D: one CG iteration more, results/threed-20261129/decay.txt)
+LEAST = {2: 0.0, 3: 6.0}    # mean rows a coarser level's leaves hold at least, by the graph's dimension: fewer, and
+# that level is aggregated again at half the strength threshold, down to THETA / 16 (AMGCL halves its eps_strong on
+# every level; results/threed-20261129/least.txt: 3-D anisotropy and rough fields had left 2-4 rows a leaf, operator
+# complexity 6.05; halving on every level cost the 3-D DMDA matrix at 1M rows 2 CG iterations; 2-D: none needed)
 JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound of D^-1 A (galerkin.smoothed_rows)
 
 
@@ -37,7 +38,7 @@ class Level:
     ``rows``: this rank's rows of ``A`` where already read; ``weighted``: the leaf vectors take |a_ii|^-1/2 in place of
     1 (a row-scaled operator: :func:`row_scaled`), from each numeric step's values."""
 
-    def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True, rows=None, weighted=False, theta=THETA):
+    def __init__(self, A, jacobi=JACOBI, leaf=None, blocks=True, rows=None, weighted=False, least=0.0):
         self.A, self.jacobi, self.weighted = A, jacobi, weighted
         start = A.getOwnershipRange()[0]
         coll = Collective(A.getComm())
@@ -46,7 +47,7 @@ class Level:
             with diagonal_block(A, rows) as block:
                 within = block_decoupled(rows, start, block)
             self.joined = coll.size > 1 and coll.any(np.any(within & ~lone))
-            self.leaf = leaves(A, rows, within, theta) if leaf is None else leaf
+            self.leaf = leaves(A, rows, within, least) if leaf is None else leaf
             self.column, self.k = leaf_columns(self.leaf, lone)
             column = self.column
             self.first, self.n_coarse = coll.exscan(self.k), coll.sum(self.k)
@@ -122,10 +123,10 @@ def _read(A, rows):
         yield rows
 
 
-def leaves(A, rows, lone=None, theta=THETA) -> np.ndarray:
+def leaves(A, rows, lone=None, least=0.0) -> np.ndarray:
     """The leaf of each of this rank's ``rows`` of ``A``: :data:`PASSES` aggregation passes over the strong couplings
-    (at ``theta``, or below where A's typical row holds none so strong: :func:`..twolevel.aggregation.threshold`)
-    of its diagonal block (``lone``: that block's decoupled rows where found), on several ranks the rows whose
+    of its diagonal block (``lone``: that block's decoupled rows where found), at half the threshold again while
+    the coupled rows' leaves hold fewer than ``least`` rows on average (:data:`LEAST`), on several ranks the rows whose
     couplings to other ranks outweigh the rest in leaves of their own (:func:`..ranksplit.cut_rows`: log-normal edge
     weights exp(5 N(0, 1)) on 2 ranks, ``tests/edges_case.py`` at 10 000 rows: 102 CG iterations without, 50 with, 43
     on one rank; ``results/robust-20261128/ab.txt``)."""
@@ -134,7 +135,17 @@ def leaves(A, rows, lone=None, theta=THETA) -> np.ndarray:
     with diagonal_block(A, rows) as block:
         alone = cut_rows(rows, block) if A.getComm().getSize() > 1 else None
         lone = block_decoupled(rows, A.getOwnershipRange()[0], block) if lone is None else lone
-        return aggregates(sp.csr_matrix(block), passes=PASSES, lone=lone, alone=alone, base=theta)
+        block, theta = sp.csr_matrix(block), THETA
+        leaf = aggregates(block, passes=PASSES, lone=lone, alone=alone)
+        while theta > THETA / 16 and _mean_size(leaf[~lone]) < least:
+            theta /= 2
+            leaf = aggregates(block, passes=PASSES, lone=lone, alone=alone, base=theta)
+        return leaf
+
+
+def _mean_size(leaf) -> float:
+    """The mean number of rows of the leaves ``leaf`` names (inf for none)."""
+    return leaf.size / np.unique(leaf).size if leaf.size else np.inf
 
 
 def block_decoupled(rows, start, block) -> np.ndarray:

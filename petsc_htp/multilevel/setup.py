@@ -15,7 +15,7 @@ from . import cycle
 from . import choice
 from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
-from .level import DECAY, JACOBI, banded_leaves, leaves, row_scaled
+from .level import JACOBI, LEAST, banded_leaves, leaves, row_scaled
 from .moved import WeakInside
 from .ranges import Ranges
 from .reordered import Reordered
@@ -49,7 +49,7 @@ class MultilevelPC:
         t0 = time.perf_counter()
         self.mat, self.prefix = mat, prefix + "ml_"
         db = PETSc.Options(self.prefix)
-        self.coarse_max, self.decay = db.getInt("coarse_max", default_coarse_max(dim)), DECAY[3 if dim > 2 else 2]
+        self.coarse_max, self.least = db.getInt("coarse_max", default_coarse_max(dim)), LEAST[3 if dim > 2 else 2]
         self.max_levels = db.getInt("max_levels", MAX_LEVELS)
         self.damping = db.getReal("damping", cycle.DAMPING)
         self.jacobi = db.getReal("jacobi", JACOBI)
@@ -115,7 +115,7 @@ class MultilevelPC:
             self.hierarchy = Hierarchy(A, self.coarse_max, self.max_levels, self.jacobi, leaf,
                                        self.smoother == "leaves", rows if self.P is None else None,
                                        self.mat.getSize()[0] > self.coarse_max and row_scaled(self.mat, rows),
-                                       self.decay)
+                                       self.least)
         self._cycle(rows)
         self.build_ms = sum(self.times.values())       # refresh_ms: the last refresh's, kept across builds
 
