@@ -93,7 +93,8 @@ MULTILEVEL_HELP = (    # read by petsc_htp.multilevel.setup.MultilevelPC (with P
     ("damping", "real", 1.5, "the largest eigenvalue of s M^-1 A the smoothers' Richardson scale s takes, in (0, 2) "
      "(M: D, or the leaf blocks; Gauss-Seidel unscaled)"),
     ("smoother", "string", "auto", "gs (a Gauss-Seidel sweep of each rank's rows, forward down, backward up), "
-     "jacobi (D^-1) or leaves (the leaf blocks' exact solves); auto: gs on a 2-D graph, else leaves"),
+     "jacobi (D^-1) or leaves (the leaf blocks' exact solves); auto: gs on a 2-D graph or a "
+     "3-D one with at most 5% of its couplings positive, else leaves"),
     ("reorder", "bool", "auto", "each rank's rows in their leaves' order; auto: where some rank's rows are not "
      "numbered locally"))
 

@@ -24,7 +24,7 @@ POSITIVE = 0.05         # share of a 3-D graph's sampled off-diagonal couplings 
 # method: P1 tetrahedra (a third positive) took 1.5 x its time with any smoother, the 7-point DMDA matrix (none)
 # 0.6-0.8 x (results/threed-20261129)
 SPAN = 4.0              # see local_order
-SAMPLE_ROWS = 4096      # rows whose entries local_order measures
+SAMPLE_ROWS = 4096      # rows whose entries local_order and signed measure
 
 
 def serves(mat, rows, shape) -> tuple:

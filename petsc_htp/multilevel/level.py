@@ -17,13 +17,13 @@ from ..aijarrays import aij, split
 from ..collective import Collective
 from ..petscmat import diagonal_block, ghost_values, local_rows
 from ..ranksplit import cut_rows, outside_rows
-from ..twolevel.aggregation import THETA, aggregates, decoupled_among, decoupled_rows
+from ..twolevel.aggregation import aggregates, decoupled_among, decoupled_rows
 from ..twolevel.csr import row_sums
 from . import galerkin
 
 PASSES = 1              # aggregation passes a level (2-D DMDA at 65 536 rows: one pass 18 CG iterations, two 23-28)
 LEAST = {2: 0.0, 3: 7.0}    # mean rows a coarser level's leaves hold at least, by the graph's dimension: fewer, and
-# that level is aggregated again at half the strength threshold, down to THETA / 16 (AMGCL halves its eps_strong on
+# that level is aggregated again at half the strength threshold, down to 1/16 of it (AMGCL halves its eps_strong on
 # every level): in 3-D anisotropy and rough fields had left 2-4 rows a leaf (operator complexity 6.05 at 50^3 with the
 # z couplings times 0.1, 2.40 so), while the 3-D DMDA matrix's 9-12 keep its hierarchy; halving on every level had
 # cost it 2 CG iterations at 1M rows (results/threed-20261129/least.txt); 2-D: none needed
@@ -126,21 +126,22 @@ def _read(A, rows):
 
 def leaves(A, rows, lone=None, least=0.0) -> np.ndarray:
     """The leaf of each of this rank's ``rows`` of ``A``: :data:`PASSES` aggregation passes over the strong couplings
-    of its diagonal block (``lone``: that block's decoupled rows where found), at half the threshold again while
-    the coupled rows' leaves hold fewer than ``least`` rows on average (:data:`LEAST`), on several ranks the rows whose
-    couplings to other ranks outweigh the rest in leaves of their own (:func:`..ranksplit.cut_rows`: log-normal edge
-    weights exp(5 N(0, 1)) on 2 ranks, ``tests/edges_case.py`` at 10 000 rows: 102 CG iterations without, 50 with, 43
-    on one rank; ``results/robust-20261128/ab.txt``)."""
+    of its diagonal block (``lone``: that block's decoupled rows where found), again at half the threshold while the
+    coupled rows' leaves hold fewer than ``least`` rows on average (:data:`LEAST`; down to 1/16 of it), on several
+    ranks the rows whose couplings to other ranks outweigh the rest in leaves of their own
+    (:func:`..ranksplit.cut_rows`: log-normal edge weights exp(5 N(0, 1)) on 2 ranks, ``tests/edges_case.py`` at
+    10 000 rows: 102 CG iterations without, 50 with, 43 on one rank; ``results/robust-20261128/ab.txt``)."""
     if not rows.shape[0]:
         return np.zeros(0, dtype=np.int64)
     with diagonal_block(A, rows) as block:
         alone = cut_rows(rows, block) if A.getComm().getSize() > 1 else None
         lone = block_decoupled(rows, A.getOwnershipRange()[0], block) if lone is None else lone
-        block, theta = sp.csr_matrix(block), THETA
+        block, scale = sp.csr_matrix(block), 1.0
         leaf = aggregates(block, passes=PASSES, lone=lone, alone=alone)
-        while theta > THETA / 16 and _mean_size(leaf[~lone]) < least:
-            theta /= 2
-            leaf = aggregates(block, passes=PASSES, lone=lone, alone=alone, base=theta)
+        shared = ~lone if alone is None else ~lone & ~alone            # the rows that may share a leaf
+        while scale > 1 / 16 and _mean_size(leaf[shared]) < least:
+            scale /= 2
+            leaf = aggregates(block, passes=PASSES, lone=lone, alone=alone, scale=scale)
         return leaf
 
 

@@ -11,8 +11,7 @@ from ..collective import Collective
 from ..events import phase
 from ..twolevel.inner import held
 from ..twolevel.spacereuse import stale_cost
-from . import cycle
-from . import choice
+from . import choice, cycle
 from .choice import local_order
 from .hierarchy import MAX_LEVELS, Hierarchy, default_coarse_max
 from .level import JACOBI, LEAST, banded_leaves, leaves, row_scaled

@@ -203,9 +203,9 @@ def node_graph(A, node) -> sp.csr_matrix:
 
 
 def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None, lone=None,
-               base=THETA) -> np.ndarray:
+               scale=1.0) -> np.ndarray:
     """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
-    ``theta`` (None: :func:`threshold`'s for A from ``base``; the standard passes after the first take the same on
+    ``theta`` (None: :func:`threshold`'s for A times ``scale``; the standard passes after the first take the same on
     the aggregates' graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG
     iterations), those
     after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
@@ -218,7 +218,7 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
     n = A.shape[0]
     if bs > 1 and n:
         node = nodes(n, bs, offset)
-        return aggregates(node_graph(A, node), theta, passes, second=second, base=base)[node]
+        return aggregates(node_graph(A, node), theta, passes, second=second, scale=scale)[node]
     lone = decoupled_rows(A) if lone is None else lone
     alone = np.zeros(n, dtype=bool) if alone is None else alone & ~lone
     keep = np.flatnonzero(~lone & ~alone)
@@ -229,7 +229,7 @@ def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, 
         M = A if whole else A[keep][:, keep].tocsr()     # submatrix (8 ms of the DMDA's 262 144 rows), their
         agg = np.arange(M.shape[0])                      # aggregates dropped below
         if theta is None:
-            theta = threshold(sampled_shares(M, picked=drawn(M.shape[0], THRESHOLD_ROWS))[1], base)
+            theta = scale * threshold(sampled_shares(M, picked=drawn(M.shape[0], THRESHOLD_ROWS))[1])
         for step in range(passes):
             if step and second == "pairs":
                 count, node = pairs(M)
