@@ -46,18 +46,17 @@ COARSE = {1: {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_ordering_ty
 
 
 def smoother(given, dim, signed) -> str:
-    """The smoother ``given`` (``-htp_ml_smoother``), or where that is 'auto' the one for a graph of dimension
-    ``dim``: Gauss-Seidel in 2-D, or in 3-D where not ``signed()`` (positive
-    couplings: :func:`.choice.signed`, asked only there), a forward sweep down and a backward one up
-    (the V-cycle stays symmetric; no eigenvalue estimate): fewer iterations than Jacobi, a sweep costing somewhat
-    more than its step (one rank, CG to 1e-8, setup + solve ms over three runs in turn, 2026-11-28,
-    results/gs-20261128/run.txt: 65 536 rows dmda2d 129-155 against 132-174 (14 against 17 iterations), lognormal
-    105-192 / 112-163 (13 / 15), free_surface 90-99 / 110-140 (11 / 14), neumann 124-182 / 134-207 (11 / 14);
-    1 048 576 rows dmda2d 3 070-3 301 / 2 804-3 240 (17 / 20); Jacobi had beaten the leaf solves: dmda2d at 1M
-    2 208 / 2 908 ms); the leaf solves
-    otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations; 65 536 rows, 28 against Gauss-Seidel's 35).
-    On the 3-D DMDA matrix Gauss-Seidel took 0.6-0.8 x the two-level method's time (results/threed-20261129/run.txt),
-    the leaf solves 1.4 x at 1M rows (results/multilevel-20261128b/dev.txt)."""
+    """The smoother ``given`` (``-htp_ml_smoother``), or where that is 'auto' the one for a graph of dimension ``dim``:
+    Gauss-Seidel in 2-D, or in 3-D where not ``signed()`` (positive couplings: :func:`.choice.signed`, asked only
+    there), a forward sweep down and a backward one up (the V-cycle stays symmetric; no eigenvalue estimate): fewer
+    iterations than Jacobi, a sweep costing somewhat more than its step (one rank, CG to 1e-8, setup + solve ms over
+    three runs in turn, 2026-11-28, results/gs-20261128/run.txt: 65 536 rows dmda2d 129-155 against 132-174 (14 against
+    17 iterations), lognormal 105-192 / 112-163 (13 / 15), free_surface 90-99 / 110-140 (11 / 14), neumann 124-182 /
+    134-207 (11 / 14); 1 048 576 rows dmda2d 3 070-3 301 / 2 804-3 240 (17 / 20); Jacobi had beaten the leaf solves:
+    dmda2d at 1M 2 208 / 2 908 ms); the leaf solves otherwise (262 144 rows, fem_tet 58 against Jacobi's 34 iterations;
+    65 536 rows, 28 against Gauss-Seidel's 35). On the 3-D DMDA matrix Gauss-Seidel took 0.6-0.8 x the two-level
+    method's time (results/threed-20261129/run.txt), the leaf solves 1.4 x at 1M rows
+    (results/multilevel-20261128b/dev.txt)."""
     if given != "auto":
         return given
     return "gs" if dim == 2 or not signed() else "leaves"

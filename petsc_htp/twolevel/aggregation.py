@@ -204,15 +204,14 @@ def node_graph(A, node) -> sp.csr_matrix:
 
 def aggregates(A, theta=None, passes=PASSES, bs=1, second="standard", offset=0, alone=None, lone=None,
                scale=1.0) -> np.ndarray:
-    """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at
-    ``theta`` (None: :func:`threshold`'s for A times ``scale``; the standard passes after the first take the same on
-    the aggregates' graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG
-    iterations), those
-    after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
+    """The leaf of every row of a square CSR ``A``: ``passes`` aggregation passes over its strong couplings at ``theta``
+    (None: :func:`threshold`'s for A times ``scale``; the standard passes after the first take the same on the
+    aggregates' graph: each its own graph's lowered the rotated anisotropy's and took it from 61 to 128 CG iterations),
+    those after the first of the kind ``second`` (one of :data:`SECOND`), decoupled rows in leaves of their own (see the
     module docstring), and the rows ``alone`` (boolean, optional: :func:`..ranksplit.cut_rows`) in leaves of one row
     each. With a block size ``bs`` > 1 the nodes' graph (:func:`node_graph`; the first row ``offset`` rows into its
-    node) is aggregated, so a leaf holds whole nodes (``alone`` is not used). ``lone``: A's decoupled rows where
-    already found (:func:`decoupled_rows`; not with ``bs`` > 1)."""
+    node) is aggregated, so a leaf holds whole nodes (``alone`` is not used). ``lone``: A's decoupled rows where already
+    found (:func:`decoupled_rows`; not with ``bs`` > 1)."""
     if second not in SECOND:
         raise ValueError(f"unknown aggregation pass {second!r}; expected one of {', '.join(SECOND)}")
     n = A.shape[0]
