@@ -26,7 +26,8 @@ LEAST = {2: 0.0, 3: 7.0}    # mean rows a coarser level's leaves hold at least, 
 # that level is aggregated again at half the strength threshold, down to 1/16 of it (AMGCL halves its eps_strong on
 # every level): in 3-D anisotropy and rough fields had left small leaves (50^3 with the z couplings times 0.1: 2.0 s,
 # 0.37 s so, results/threed-20261129/least.txt; operator complexity above 3 at 24^3, tests/test_multilevel.py),
-# while the 3-D DMDA matrix's 9-12 rows a leaf keep its hierarchy; halving on every level had cost it 2 CG iterations at 1M rows (README); 2-D: none needed
+# while the 3-D DMDA matrix's 9-12 rows a leaf keep its hierarchy; halving on every level had cost it 2 CG
+# iterations at 1M rows (README); 2-D: none needed
 JACOBI = 1.4            # W = (I - JACOBI / g D^-1 A) W0, g the Gershgorin bound of D^-1 A (galerkin.smoothed_rows)
 
 
