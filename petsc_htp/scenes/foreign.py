@@ -13,6 +13,7 @@ PETSc user, a liquid simulation or a finite-element code hands over. Every funct
 - :func:`lognormal`: 5-point Poisson with a log-normal permeability of the given contrast.
 - :func:`neumann`: 5-point variable coefficients with no-flux walls (singular; the constant is its null space).
 - :func:`cubes`: 3-D finite volumes with random cubes of a high conductivity.
+- :func:`cells`: the 5/7-point operator of given cell conductivities, Dirichlet walls or no flux.
 - :func:`pockets`: a closed 2-D domain holding sealed pockets, each a null component of its own (singular).
 - :mod:`petsc_htp.scenes.meshes`: P1 finite elements on unstructured triangles and tets.
 """
@@ -124,15 +125,26 @@ def lognormal(side, contrast=1e10, seed=0) -> tuple:
     return A, np.full(n, 1.0 / n)
 
 
+def cells(k, walls=True) -> sp.csr_matrix:
+    """The 5-point (7-point) harmonic-mean operator of the cell conductivities ``k`` (2-D or 3-D): Dirichlet walls
+    half a cell outside (each wall face adds 2 k to its cell's diagonal) or, ``walls`` False, no flux."""
+    rows, cols, vals, diag = _grid5(k)
+    n = k.size
+    if walls:
+        for axis in range(k.ndim):
+            for face in (0, k.shape[axis] - 1):
+                wall = [slice(None)] * k.ndim
+                wall[axis] = face
+                diag[np.arange(n).reshape(k.shape)[tuple(wall)].ravel()] += 2 * k[tuple(wall)].ravel()
+    return _csr(np.concatenate(rows + [np.arange(n)]), np.concatenate(cols + [np.arange(n)]),
+                np.concatenate(vals + [diag]), n)
+
+
 def neumann(side, contrast=1e3, seed=0) -> tuple:
     """5-point variable coefficients with no-flux walls on every side: singular, its null space the constant.
     The right-hand side has zero mean (consistent)."""
-    k = inclusions(side, side, contrast, seed)
-    rows, cols, vals, diag = _grid5(k)
-    n = side * side
-    A = _csr(np.concatenate(rows + [np.arange(n)]), np.concatenate(cols + [np.arange(n)]),
-             np.concatenate(vals + [diag]), n)
-    b = np.random.default_rng(seed).standard_normal(n)
+    A = cells(inclusions(side, side, contrast, seed), walls=False)
+    b = np.random.default_rng(seed).standard_normal(side * side)
     return A, b - b.mean()
 
 
@@ -171,16 +183,8 @@ def cubes(side, contrast=1e6, count=60, seed=5) -> tuple:
     k = np.ones((side,) * 3)
     for i, j, m in rng.integers(0, side - 6, (count, 3)):
         k[i:i + 5, j:j + 5, m:m + 5] = contrast
-    n = k.size
-    rows, cols, vals, diag = _grid5(k)
-    for axis in range(3):
-        for face in (0, side - 1):
-            wall = [slice(None)] * 3
-            wall[axis] = face
-            diag[np.arange(n).reshape(k.shape)[tuple(wall)].ravel()] += 2 * k[tuple(wall)].ravel()
-    A = _csr(np.concatenate(rows + [np.arange(n)]), np.concatenate(cols + [np.arange(n)]),
-             np.concatenate(vals + [diag]), n)
-    return A, A @ np.random.default_rng(1).standard_normal(n)
+    A = cells(k)
+    return A, A @ np.random.default_rng(1).standard_normal(k.size)
 
 
 def anisotropic(side, eps=0.01, angle=np.pi / 6, frame=0) -> tuple:

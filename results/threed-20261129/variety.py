@@ -16,24 +16,11 @@ from petsc4py import PETSc  # noqa: E402
 
 from petsc_htp.onesolve import timed_solve  # noqa: E402
 from petsc_htp.scenes import foreign  # noqa: E402
+from petsc_htp.scenes.gallery import balls  # noqa: E402
 
 HTP = "-ksp_type cg -ksp_rtol 1e-8 -ksp_norm_type unpreconditioned -pc_type python -pc_python_type petsc_htp.HTPPC"
 SETS = {"default": HTP, "twolevel": HTP + " -htp_variant twolevel",
         "gamg": "-ksp_norm_type unpreconditioned -ksp_rtol 1e-8 -options_file options/cg_gamg.opts"}
-
-
-def grid7(k, walls=True):
-    """7-point harmonic-mean operator on cell conductivity ``k``; Dirichlet walls (half a cell away) or no flux."""
-    rows, cols, vals, diag = foreign._grid5(k)
-    n = k.size
-    if walls:
-        for axis in range(3):
-            for face in (0, k.shape[axis] - 1):
-                wall = [slice(None)] * 3
-                wall[axis] = face
-                diag[np.arange(n).reshape(k.shape)[tuple(wall)].ravel()] += 2 * k[tuple(wall)].ravel()
-    return foreign._csr(np.concatenate(rows + [np.arange(n)]), np.concatenate(cols + [np.arange(n)]),
-                        np.concatenate(vals + [diag]), n)
 
 
 def aniso(side, eps):
@@ -46,9 +33,9 @@ def aniso(side, eps):
 def cases(side):
     rng = np.random.default_rng(0)
     out = {f"aniso_z{eps}": aniso(side, eps) for eps in (0.3, 0.1, 0.01)}
-    out.update({f"lognormal_s{s}": grid7(np.exp(s * rng.standard_normal((side,) * 3))) for s in (1, 2)})
+    out.update({f"lognormal_s{s}": foreign.cells(np.exp(s * rng.standard_normal((side,) * 3))) for s in (1, 2)})
     out["cubes1e6"] = foreign.cubes(side)[0]
-    out["neumann3d"] = grid7(foreign._field((side,) * 3, 1e3, 0), walls=False)
+    out["neumann3d"] = foreign.cells(balls((side,) * 3, 1e3, 0), walls=False)
     p = rng.permutation(side ** 3)
     out["dmda3d_random"] = foreign.dmda(3, side, 1e3, 0)[0][p][:, p]
     return out
