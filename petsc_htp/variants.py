@@ -34,7 +34,12 @@ from .twolevel.config import Config
 TORCH_EXTRA = "pip install 'petsc_htp[learned]'"
 FIXED = {"preonly": "applied once (KSPPREONLY)",              # KSPs that ICC(0) of the whole matrix does not serve
          "richardson": "applied by a fixed-point iteration (KSPRICHARDSON), which ICC(0)'s M A with eigenvalues "
-                       "above 2 makes diverge"}  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
+                       "above 2 makes diverge",  # (rotated anisotropy at 500-1 500 rows, PyAMG's bar: DIVERGED_DTOL)
+         "chebyshev": "applied by a Chebyshev iteration (KSPCHEBYSHEV), whose eigenvalue estimate ICC(0)'s M A "
+                      "outruns",    # (PyAMG's bar, P1 triangles of 7 921 rows: DIVERGED_NANORINF after 1 143 steps,
+         # PETSc's own ICC(0) too, then a SEGV at exit; the exact factor: 28 steps)
+         "cgs": "applied by CGS (KSPCGS), which squares ICC(0)'s residual polynomial"}   # (bar: DIVERGED_DTOL, as
+# under PETSc's own ICC(0); the exact factor: none)
 KEEP_SHARE = 0.1    # another Mat whose rows and entries a row lie within this share of those the last fresh choice was
 # made for keeps that choice where it was no whole factor (a liquid's pattern changes every frame; the choice is
 # -log_view's HTPChoice event)

@@ -1,5 +1,5 @@
 """mpiexec -n R python tests/ksps_case.py: small matrices of the foreign study (below 2 000 rows: one factor of the
-whole matrix, ICC(0) for the anisotropic one) under KSPs other than CG, each from a fresh KSP with HTPPC; prints
+whole matrix, ICC(0) for the anisotropic one and PyAMG's ``bar``) under KSPs other than CG, each from a fresh KSP with HTPPC; prints
 ``KSP <matrix> <ksp> <reason> <its> <true relres>`` per solve."""
 import sys
 
@@ -11,7 +11,7 @@ import scipy.sparse as sp  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from petsc_htp import HTPPC  # noqa: E402
-from petsc_htp.bench.foreigncases import CASES  # noqa: E402
+from petsc_htp.bench.foreigncases import CASES, pyamg_cases  # noqa: E402
 
 COMM = PETSc.COMM_WORLD
 KSPS = ("bcgsl", "richardson", "chebyshev", "cgs", "tfqmr", "minres", "gmres", "bcgs", "cgne")
@@ -34,8 +34,11 @@ def distributed(A, b):
     return mat, rhs, x
 
 
-for name, n in (("dmda2d", 1024), ("neumann", 900), ("aniso_e0.01_a30", 1024)):
-    mat, rhs, x = distributed(*CASES[name](n, 0))
+MATRICES = {name: CASES[name](n, 0) for name, n in (("dmda2d", 1024), ("neumann", 900), ("aniso_e0.01_a30", 1024))}
+MATRICES["pyamg_bar"] = pyamg_cases()["pyamg_bar"]
+
+for name, (A, b) in MATRICES.items():
+    mat, rhs, x = distributed(A, b)
     for kind in KSPS:
         ksp = PETSc.KSP().create(COMM)
         ksp.setOperators(mat)
