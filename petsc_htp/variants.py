@@ -122,20 +122,25 @@ class TwoLevel:
     def composed(self, mat, A, coords):
         """The method for a matrix not factored whole: the two-level one (:class:`.twolevel.composed.TwoLevelPC`), or
         with no two-level option set (nor ``-htp_variant`` itself) where :func:`.multilevel.choice.serves` (a bare 2-D
-        graph, or 3-D without positive couplings, of at least ``MIN_ROWS`` rows, in a local order on several ranks) the
-        multilevel V-cycles, :attr:`note` saying so."""
+        graph, or 3-D without positive couplings, of at least ``MIN_ROWS`` rows, in a local order on several ranks)
+        or, under KSPRICHARDSON, :func:`.multilevel.choice.fixed_point` (a bare 3-D graph) the multilevel V-cycles,
+        :attr:`note` saying so."""
         if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
             from petsc4py import PETSc
 
-            from .multilevel.choice import serves
+            from .multilevel.choice import fixed_point, serves
 
-            why, reorder, dim = ("", False, 0) if PETSc.Options(self.prefix).hasName("htp_variant") else serves(
-                mat, A, lambda: self.choice.block_shape(mat, A))
+            shape = lambda: self.choice.block_shape(mat, A)     # noqa: E731
+            chosen = not PETSc.Options(self.prefix).hasName("htp_variant")
+            why, reorder, dim = serves(mat, A, shape) if chosen else ("", False, 0)
+            fixed = chosen and not why and self.exact_only == FIXED["richardson"]
+            if fixed:
+                why, reorder, dim = fixed_point(mat, A, shape)
             if why:
                 from .multilevel.setup import MultilevelPC
 
                 self.note = why
-                return MultilevelPC(mat, A, self.prefix + "htp_", dim, reorder=reorder, signed=False)
+                return MultilevelPC(mat, A, self.prefix + "htp_", dim, reorder=reorder, signed=None if fixed else False)
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
@@ -186,6 +191,7 @@ class TwoLevel:
     def once(self, ksp, pc, setup) -> bool:
         """Whether a solve by ``ksp`` calls for a new analysis: one of :data:`FIXED` (a KSPPREONLY: PCMG's coarse
         solve, PCFIELDSPLIT's splits; KSPRICHARDSON) where ``setup`` is ICC(0), chosen for the iterations it saves, or
+        KSPRICHARDSON where it is the two-level method on a 3-D graph (:func:`.multilevel.choice.fixed_point`), or
         another after a choice made for such a KSP (a KSPReset and a new type: ICC(0) may serve again); the choice
         takes exact factors or the two-level method while the KSP is one of them (:attr:`exact_only`,
         :class:`~petsc_htp.whole.WholeChoice`). (A Pmat apart from the Amat keeps ICC(0): P = A with its diagonal x
@@ -195,7 +201,9 @@ class TwoLevel:
         self.exact_only = FIXED.get(ksp.getType())
         from .twolevel.direct import INCOMPLETE
 
-        return (not made and getattr(setup, "kind", None) in INCOMPLETE) if once else made
+        three = (ksp.getType() == "richardson" and getattr(getattr(setup, "st", None), "dim", 0) == 3
+                 and getattr(setup, "coords", 0) is None)          # a bare matrix's two-level method
+        return (not made and (getattr(setup, "kind", None) in INCOMPLETE or three)) if once else made
 
     def numeric(self, analysis, mat, A, density, previous):
         """New values; the coarse space is kept while it serves (``-htp_coarse_space_every``,

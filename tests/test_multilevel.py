@@ -149,6 +149,24 @@ def test_two_ranks_build_the_levels_each_from_its_own_rows(smoother):
     assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1.2e-8
 
 
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_richardson_takes_the_v_cycles_on_a_3d_graph(ranks):
+    """Under KSPRICHARDSON a bare 3-D graph above the whole factors' sizes takes the V-cycles (:func:`.choice.fixed_point`:
+    the two-level method's leaf solves put eigenvalues of M A above 2, where Richardson diverges), also on 2 ranks whose
+    rows lie at random (P1 tets of 12 167 rows: DIVERGED_DTOL after 664 steps on one rank, none in 10 000 on two, under
+    ``-htp_variant twolevel``, which keeps that method)."""
+    mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
+    out = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(ROOT / "examples" / "matrix_file.py"), "-case",
+                          "fem_tet", "-n", "12000", "-ksp_type", "richardson", "-ksp_norm_type", "unpreconditioned",
+                          "-ksp_rtol", "1e-8", "-pc_type", "python", "-pc_python_type", "petsc_htp.HTPPC",
+                          "-ksp_view"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "by the KSP: a fixed-point iteration, KSPRICHARDSON" in out.stdout, out.stdout
+    assert re.search(r"^converged reason: 2\b", out.stdout, re.M), out.stdout
+    assert float(re.search(r"true relative residual .*: (\S+)", out.stdout).group(1)) <= 1.2e-8
+
+
 def test_the_leaves_order_changes_no_iteration_and_blocks_take_the_two_level_method():
     """The levels built on the rows in their leaves' order (the default) and on the user's order take the same
     iterations on P1 triangles numbered at random; a Mat with a block size takes the two-level method, and the view

@@ -52,6 +52,22 @@ def serves(mat, rows, shape) -> tuple:
             f"at least {MIN_ROWS}{kind}{order}; -htp_variant twolevel keeps the two-level method)"), not local, dim
 
 
+def fixed_point(mat, rows, shape) -> tuple:
+    """(why | reorder | dimension), as :func:`serves` says them, for a bare matrix under KSPRICHARDSON that
+    :func:`serves` declined: a scalar 3-D graph of any size above the whole-matrix factors', in any order. The
+    two-level method's leaf solves put eigenvalues of M A above 2 there, which a fixed-point iteration does not
+    survive, while the V-cycles' smoothers are damped below it (P1 tets at 12 000 and 30 000 rows: DIVERGED_DTOL after
+    81 and 85 steps, the backward-Euler tets after 1 907 and 71, on 2 ranks split at random none in 10 000; V-cycles
+    122, 147, 108 and 121 steps, on 2 ranks 366, at 64 000 rows 283 with 1.1 s of set-up; PETSc's GAMG 206 at 30 000;
+    2-D graphs converge under the two-level method). Collective."""
+    if unscalar(mat, rows) or dimension(mat, rows, shape) != 3:
+        return "", False, 0
+    local = not Collective(mat.getComm()).any(not local_order(rows, mat.getOwnershipRange()[0]))
+    return ("multilevel V-cycles in place of the two-level method (by the KSP: a fixed-point iteration, KSPRICHARDSON, "
+            "which the leaf solves' M A, above 2 on a 3-D graph, makes diverge; -htp_variant twolevel keeps the "
+            "two-level method)"), not local, 3
+
+
 def signed(mat, rows) -> bool:
     """Whether more than :data:`POSITIVE` of the nonzero off-diagonal couplings of :data:`SAMPLE_ROWS` evenly spaced
     rows are positive on some rank (``rows``: this rank's; collective)."""
