@@ -9,7 +9,7 @@ def _thin(setup, x, y):
     ops, cs, forms = setup.ops, setup.coarse, setup.forms
     exact, deflated = setup.leafsolver.exact, forms.form() == "deflated"
     if exact and deflated:
-        ops.C.multTranspose(forms.v, cs.g)
+        ops.CT.mult(forms.v, cs.g)
     else:
         ops.W.multTranspose(x, cs.g)
         other = ops.C if exact else ops.AW

@@ -100,7 +100,7 @@ class Forms:
         if self.form() == "deflated" and self.started:
             self._leaf(x, v)                                   # v = B x
             if self.B.exact:
-                ops.C.multTranspose(v, g)                      # g = C^T v = (A W)^T B x - W^T x
+                ops.CT.mult(v, g)                              # g = C^T v = (A W)^T B x - W^T x
                 g.scale(-1.0)
             else:
                 ops.W.multTranspose(x, g)
@@ -129,7 +129,7 @@ class Forms:
         ops.C.mult(c, t)
         t.aypx(-1.0, x)                                        # x - C c1
         self._leaf(t, v)                                       # s = B (x - C c1)
-        ops.C.multTranspose(v, g)
+        ops.CT.mult(v, g)
         ops.F.mult(c, c2)
         g.axpy(-1.0, c2)                                       # C^T s - W^T C c1
         self._coarse(g, c2)
