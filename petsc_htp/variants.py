@@ -125,15 +125,12 @@ class TwoLevel:
         graph, or 3-D without positive couplings, of at least ``MIN_ROWS`` rows, in a local order on several ranks)
         or, under KSPRICHARDSON, :func:`.multilevel.choice.fixed_point` (a bare 3-D graph) the multilevel V-cycles,
         :attr:`note` saying so."""
-        if coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None:
-            from petsc4py import PETSc
-
+        if self._chooses(coords):
             from .multilevel.choice import fixed_point, serves
 
             shape = lambda: self.choice.block_shape(mat, A)     # noqa: E731
-            chosen = not PETSc.Options(self.prefix).hasName("htp_variant")
-            why, reorder, dim = serves(mat, A, shape) if chosen else ("", False, 0)
-            fixed = chosen and not why and self.exact_only == FIXED["richardson"]
+            why, reorder, dim = serves(mat, A, shape)
+            fixed = not why and self.exact_only == FIXED["richardson"]
             if fixed:
                 why, reorder, dim = fixed_point(mat, A, shape)
             if why:
@@ -144,6 +141,14 @@ class TwoLevel:
         from .twolevel.composed import TwoLevelPC
 
         return TwoLevelPC(mat, A, coords, self.config(), self.prefix + "htp_", self.net)
+
+    def _chooses(self, coords) -> bool:
+        """Whether the method follows the problem (:meth:`composed`): a bare matrix (no ``coords``), no option of the
+        two-level method set, nor ``-htp_variant`` itself, nor a network."""
+        from petsc4py import PETSc
+
+        return (coords is None and self.opts.plain and self.opts.direct_max < 0 and self.net is None
+                and not PETSc.Options(self.prefix).hasName("htp_variant"))
 
     def _followed(self, mat, A, coords):
         """``coords``, or None where coupled rows lie far apart in them (:mod:`.twolevel.coordcheck`: coordinates
@@ -190,19 +195,22 @@ class TwoLevel:
 
     def once(self, ksp, pc, setup) -> bool:
         """Whether a solve by ``ksp`` calls for a new analysis: one of :data:`FIXED` (a KSPPREONLY: PCMG's coarse
-        solve, PCFIELDSPLIT's splits; KSPRICHARDSON) where ``setup`` is ICC(0), chosen for the iterations it saves, or
-        KSPRICHARDSON where it is the two-level method on a 3-D graph (:func:`.multilevel.choice.fixed_point`), or
+        solve, PCFIELDSPLIT's splits; KSPRICHARDSON, KSPCGS, KSPCHEBYSHEV and its eigenvalue estimate, a KSP of prefix
+        ``esteig_`` on the same PC, whose GMRES had taken ICC(0) back at each setup) where ``setup`` is ICC(0), or
+        KSPRICHARDSON where it is the two-level method on a 3-D graph whose method follows the problem
+        (:func:`.multilevel.choice.fixed_point`), or
         another after a choice made for such a KSP (a KSPReset and a new type: ICC(0) may serve again); the choice
         takes exact factors or the two-level method while the KSP is one of them (:attr:`exact_only`,
         :class:`~petsc_htp.whole.WholeChoice`). (A Pmat apart from the Amat keeps ICC(0): P = A with its diagonal x
         1.05, 16 384 rows, took it 482 CG iterations in about 240 ms, the two-level method 293 in 335-708.)"""
-        made = self.choice is not None and self.choice.exact_only is not None     # the choice in use took them
-        once = ksp.getType() in FIXED
-        self.exact_only = FIXED.get(ksp.getType())
+        from .twolevel.consistency import ESTIMATE
         from .twolevel.direct import INCOMPLETE
 
-        three = (ksp.getType() == "richardson" and getattr(getattr(setup, "st", None), "dim", 0) == 3
-                 and getattr(setup, "coords", 0) is None)          # a bare matrix's two-level method
+        kind = "chebyshev" if (ksp.getOptionsPrefix() or "").endswith(ESTIMATE) else ksp.getType()
+        made = self.choice is not None and self.choice.exact_only is not None     # the choice in use took them
+        once, self.exact_only = kind in FIXED, FIXED.get(kind)
+        three = (kind == "richardson" and getattr(getattr(setup, "st", None), "dim", 0) == 3
+                 and self._chooses(getattr(setup, "coords", 0)))
         return (not made and (getattr(setup, "kind", None) in INCOMPLETE or three)) if once else made
 
     def numeric(self, analysis, mat, A, density, previous):

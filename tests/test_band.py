@@ -359,6 +359,39 @@ def test_small_matrices_reach_the_tolerance_under_other_ksps(ranks):
     assert not bad, bad
 
 
+def test_chebyshev_estimates_its_eigenvalues_on_the_exact_factor_it_iterates():
+    """Under KSPCHEBYSHEV PyAMG's ``bar`` takes the exact factor in place of ICC(0), and so does its eigenvalue
+    estimate (a GMRES of prefix ``esteig_`` on the same PC): new values cost no analysis (that GMRES had taken ICC(0)
+    back at each setup, two analyses a solve, the estimate then ICC(0)'s), and Chebyshev takes PETSc's Cholesky's 28
+    steps (on ICC(0) itself it ended in NaN after 1 143)."""
+    from petsc_htp import HTPPC
+    from petsc_htp.bench.foreigncases import pyamg_cases
+
+    A, b = pyamg_cases()["pyamg_bar"]
+    A = sp.csr_matrix(A)
+    A.sort_indices()
+    it = PETSc.IntType
+    mat = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr.astype(it), A.indices.astype(it), A.data), comm=PETSc.COMM_SELF)
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp.setOperators(mat)
+    ksp.setType("chebyshev")
+    ksp.setTolerances(rtol=1e-8, max_it=200)
+    ksp.getPC().setType("python")
+    ctx = HTPPC()
+    ksp.getPC().setPythonContext(ctx)
+    x, rhs = mat.createVecs()
+    rhs.array[:] = b
+    for k in range(3):
+        if k:
+            mat.scale(1.5)
+        x.set(0.0)
+        ksp.solve(rhs, x)
+        assert ksp.getConvergedReason() > 0 and ksp.getIterationNumber() <= 30, (k, ksp.getIterationNumber())
+        assert ctx.setup.kind == "cholesky" and ctx.analysis_count == 2, (k, ctx.setup.kind, ctx.analysis_count)
+    for obj in (ksp, mat, x, rhs):
+        obj.destroy()
+
+
 @pytest.mark.mpi
 def test_two_ranks_gather_the_band():
     """On 2 ranks a small 2-D matrix (the foreign study's DMDA matrix, 1 024 rows) gets the banded factor too,

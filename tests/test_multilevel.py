@@ -154,8 +154,8 @@ def test_two_ranks_build_the_levels_each_from_its_own_rows(smoother):
 def test_richardson_takes_the_v_cycles_on_a_3d_graph(ranks):
     """Under KSPRICHARDSON a bare 3-D graph above the whole factors' sizes takes the V-cycles (:func:`.choice.fixed_point`:
     the two-level method's leaf solves put eigenvalues of M A above 2, where Richardson diverges), also on 2 ranks whose
-    rows lie at random (P1 tets of 12 167 rows: DIVERGED_DTOL after 664 steps on one rank, none in 10 000 on two, under
-    ``-htp_variant twolevel``, which keeps that method)."""
+    rows lie at random (P1 tets of 12 167 rows, frame 0's values: DIVERGED_DTOL after 664 steps on one rank, none in
+    10 000 on two, under ``-htp_variant twolevel``, which keeps that method)."""
     mpiexec = shutil.which("mpiexec", path=f"{Path(sys.executable).parent}:/usr/bin")
     out = subprocess.run([mpiexec, "-n", str(ranks), sys.executable, str(ROOT / "examples" / "matrix_file.py"), "-case",
                           "fem_tet", "-n", "12000", "-ksp_type", "richardson", "-ksp_norm_type", "unpreconditioned",

@@ -182,7 +182,7 @@ class TwoLevelPC:
 
     @property
     def nbytes(self) -> int:
-        """Bytes held on this rank: D and its factor, S and its, W, C, E and the coarse solver's (8 a value)."""
+        """Bytes held on this rank: D and its factor, S and its, W, C, C^T, E and the coarse solver's (8 a value)."""
         return int(8 * (self.ops.nnz() + self.space.nnz() + self.leafsolver.nnz() + self.coarse.nnz()))
 
     def inner_pcs(self) -> dict:

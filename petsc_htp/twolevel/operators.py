@@ -120,8 +120,9 @@ class Operators:
         self._w.set(values)
         first = self.C is None
         self.C = self.O.matMult(self.W, result=self.C)
-        self.CT = self.C.transpose(self.CT or PETSc.Mat())        # C^T v by MatMult: 13 against 49 us at 16 384
-        # rows, 87 against 258 at 65 536 (the own frames' C), once an application
+        if exact:                               # C^T v by MatMult, once an application (exact leaves' forms alone):
+            self.CT = self.C.transpose(self.CT or PETSc.Mat())    # 13 against 49 us at 16 384 rows, 87 against 258
+            # at 65 536 (the own frames' C: results/ctrans-20261129/ab.txt)
         if not exact:
             self.AW = self.mat.matMult(self.W, result=self.AW)
         if first and self._rap:
