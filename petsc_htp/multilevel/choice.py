@@ -58,8 +58,8 @@ def fixed_point(mat, rows, shape) -> tuple:
     two-level method's leaf solves put eigenvalues of M A above 2 there, which a fixed-point iteration does not
     survive, while the V-cycles' smoothers are damped below it (P1 tets at 12 000 and 30 000 rows: DIVERGED_DTOL after
     81 and 85 steps, the backward-Euler tets after 1 907 and 71, on 2 ranks split at random none in 10 000; V-cycles
-    122, 147, 108 and 121 steps, on 2 ranks 366, at 64 000 rows 283 with 1.1 s of set-up; PETSc's GAMG 206 at 30 000;
-    2-D graphs converge under the two-level method). Collective."""
+    122, 147, 108 and 121 steps, on 2 ranks 366 and at 64 000 rows 283; PETSc's GAMG 206 at 30 000; 2-D graphs
+    converge under the two-level method: results/kspsweep-20261129/sweep.txt). Collective."""
     if unscalar(mat, rows) or dimension(mat, rows, shape) != 3:
         return "", False, 0
     local = not Collective(mat.getComm()).any(not local_order(rows, mat.getOwnershipRange()[0]))
