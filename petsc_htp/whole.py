@@ -61,8 +61,8 @@ class WholeChoice:
         if n > max(*sizing.DIRECT_MAX.values(), *sizing.WHOLE_ICC_MAX.values()):
             if self.exact_only:                 # ICC(0), also each rank's (bjacobi, asm), is chosen for its
                 # iterations; only one rank's band stays (a chain on several takes the two-level method), and under a
-                # KSP that iterates, diagonally dominant rows' ICC(0) (the 512^2 5-point matrix + 2 I: PETSc's ICC(0)
-                # took Richardson 10 steps, Chebyshev 32, CGS 4; Chebyshev 432 ms against the V-cycles' 951)
+                # KSP that iterates, diagonally dominant rows' ICC(0) (the 512^2 5-point matrix + 2 I: Richardson 10
+                # steps, Chebyshev 32, CGS 4, 0.4 x the V-cycles' time: results/kspsweep-20261129/dominant.txt)
                 kind = None if self.exact_only == _once() else self._dominant(mat, A, coll)
                 return kind or (self._banded(A) if coords is None and coll.size == 1 and n <= sizing.BAND_CHECK_MAX
                                 else None)

@@ -548,8 +548,8 @@ def test_a_preonly_ksp_gets_exact_factors_or_the_two_level_method_not_icc():
 def test_dominant_rows_keep_icc_under_the_iterations_that_take_no_icc_elsewhere(ksp_type):
     """Richardson, Chebyshev and CGS take exact factors or the two-level method where ICC(0) was chosen for its
     iterations (:data:`petsc_htp.variants.FIXED`), but above the whole factors' sizes diagonally dominant rows keep
-    ICC(0), whose M A stays near 1 there (the V-cycles had taken Chebyshev 2.2 x its time on the 512^2 5-point matrix +
-    2 I, 32 steps either way)."""
+    ICC(0), whose M A stays near 1 there (the V-cycles took Chebyshev 2.6 x its time on the 512^2 5-point matrix + 2 I,
+    32 steps either way: results/kspsweep-20261129/dominant.txt)."""
     big = (sp.kronsum(*2 * [sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], (120, 120))]) + 0.5 * sp.identity(14400)).tocsr()
     b = np.random.default_rng(1).standard_normal(big.shape[0])
     reason, its, relres, ksp, _ = solve(big, b, ksp_type=ksp_type)
